@@ -1,0 +1,1 @@
+"""Built-in encoder plugins for repbench (installed as ``repbench_encoders``)."""

@@ -1,0 +1,189 @@
+"""The encoder API: scikit-learn–style estimators that map observations to latents.
+
+Write your own in a few lines::
+
+    import numpy as np
+    import repbench
+
+    @repbench.encoders.register("mean_pixel")
+    class MeanPixel(repbench.Encoder):
+        \"\"\"Mean image colour (a toy example).\"\"\"
+        required_modalities = ("image",)
+
+        def __init__(self, scale: float = 1.0):
+            self.scale = scale
+
+        def fit(self, dataset):
+            self.fitted_ = True
+            return self
+
+        def encode(self, observations):
+            img = self.check_observations(observations)["image"]
+            return (img.reshape(len(img), -1, 3).mean(1) * self.scale).astype(np.float32)
+
+        @property
+        def latent_dim(self):
+            return 3
+
+Rules (checked by :func:`repbench.testing.check_encoder`): the constructor only stores its
+arguments under the same names; ``fit`` returns ``self``; learned state ends in ``_``;
+``encode`` returns float32 ``[N, latent_dim]`` — the mean μ_z, never a sample — deterministically.
+"""
+
+from __future__ import annotations
+
+import abc
+import inspect
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+
+from repbench.dataset import FT, IMAGE, PROPRIO, Dataset, as_observation_batch
+from repbench.errors import DataError, RepbenchError
+
+E = TypeVar("E", bound="Encoder")
+
+_FORMAT = "repbench-encoder-v1"
+
+
+class Encoder(abc.ABC):
+    """Base class of all encoders. Subclasses implement ``fit``, ``encode``, ``latent_dim``.
+
+    Torch-based encoders override :meth:`get_state` / :meth:`set_state` to expose their
+    tensors; the base class takes care of files.
+    """
+
+    #: Modalities ``encode`` reads; batches lacking one are rejected with a clear error.
+    required_modalities: ClassVar[tuple[str, ...]] = (IMAGE, FT, PROPRIO)
+
+    # -- to implement --------------------------------------------------------------------------
+    @abc.abstractmethod
+    def fit(self: E, dataset: Dataset) -> E:
+        """Learn from ``dataset``; return ``self``."""
+
+    @abc.abstractmethod
+    def encode(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Map an observation batch (modality → array, leading batch axis) to float32 [N, D]."""
+
+    @property
+    @abc.abstractmethod
+    def latent_dim(self) -> int:
+        """Size D of the latent vector."""
+
+    # -- parameters (scikit-learn convention) --------------------------------------------------
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        sig = inspect.signature(cls.__init__)
+        return [
+            p.name for p in sig.parameters.values()
+            if p.name != "self" and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
+        ]
+
+    def get_params(self) -> dict[str, Any]:
+        """Constructor arguments, enough to rebuild an unfitted copy: ``type(e)(**e.get_params())``."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self: E, **params: Any) -> E:
+        valid = set(self._param_names())
+        for key, value in params.items():
+            if key not in valid:
+                raise RepbenchError(
+                    f"{type(self).__name__} has no parameter {key!r}; valid: {sorted(valid)}"
+                )
+            setattr(self, key, value)
+        return self
+
+    @property
+    def is_fitted(self) -> bool:
+        return any(k.endswith("_") and not k.startswith("_") for k in vars(self))
+
+    def check_observations(self, observations: Mapping[str, Any]) -> dict[str, np.ndarray]:
+        """Return the required modalities as arrays, or raise DataError naming what is missing."""
+        return as_observation_batch(observations, self.required_modalities, type(self).__name__)
+
+    def check_is_fitted(self) -> None:
+        if not self.is_fitted:
+            raise RepbenchError(f"{type(self).__name__} is not fitted: call fit(dataset) first")
+
+    # -- state and files -----------------------------------------------------------------------
+    def get_state(self) -> dict[str, Any]:
+        """Learned state as tensors, arrays and plain Python values (no arbitrary objects)."""
+        return {k: v for k, v in vars(self).items() if k.endswith("_") and not k.startswith("_")}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Restore what :meth:`get_state` returned."""
+        for key, value in state.items():
+            setattr(self, key, value)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Save hyperparameters and learned state; loadable without executing code from the file."""
+        import torch
+
+        self.check_is_fitted()
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        payload = {
+            "format": _FORMAT,
+            "class": f"{type(self).__module__}:{type(self).__qualname__}",
+            "params": self.get_params(),
+            "state": _to_saveable(self.get_state()),
+        }
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        torch.save(payload, tmp)
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls: type[E], path: str | os.PathLike[str]) -> E:
+        """Load an encoder saved by :meth:`save` (``torch.load(weights_only=True)``)."""
+        import torch
+
+        path = Path(path)
+        try:
+            payload = torch.load(path, map_location="cpu", weights_only=True)
+        except FileNotFoundError:
+            raise DataError(f"encoder file {path} does not exist") from None
+        except Exception as exc:  # torch raises many types for damaged files
+            raise DataError(f"encoder file {path} cannot be read ({exc}); fit it again") from None
+        if not isinstance(payload, dict) or payload.get("format") != _FORMAT:
+            raise DataError(f"{path} is not a repbench encoder file")
+        target: type[Encoder] = cls
+        if cls is Encoder or inspect.isabstract(cls):
+            from repbench.registry import import_reference
+
+            target = import_reference(payload["class"])
+        encoder = target(**payload["params"])
+        encoder.set_state(_from_saved(payload["state"]))
+        return encoder  # type: ignore[return-value]
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+
+def _to_saveable(value: Any) -> Any:
+    """numpy arrays → tensors (weights_only can load tensors but not ndarrays)."""
+    import torch
+
+    if isinstance(value, np.ndarray):
+        return {"__ndarray__": torch.from_numpy(np.ascontiguousarray(value))}
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {k: _to_saveable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_to_saveable(v) for v in value)
+    return value
+
+
+def _from_saved(value: Any) -> Any:
+    if isinstance(value, dict):
+        if set(value) == {"__ndarray__"}:
+            return value["__ndarray__"].numpy()
+        return {k: _from_saved(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_from_saved(v) for v in value)
+    return value

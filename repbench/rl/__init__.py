@@ -1,0 +1,1 @@
+"""Downstream RL on frozen encoders (Stable-Baselines3)."""

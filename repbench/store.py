@@ -1,0 +1,277 @@
+"""The stage store: every stage's output under a content hash of its config and inputs.
+
+An artifact is a directory ``<root>/<stage>/<key>/`` holding the stage's files and a
+``meta.json`` record (config, input keys, seeds, library versions, git commit, timings, and the
+SHA-256 of every file). It is built in ``<root>/.tmp/`` and appears under its final name by one
+``rename``: a reader sees a complete artifact or none, even if the writer is killed with -9.
+A later reader that finds a file missing or failing its checksum reports it, moves the artifact
+aside to ``<root>/.corrupt/`` and recomputes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import json
+import logging
+import os
+import platform
+import shutil
+import subprocess
+import time
+import uuid
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from repbench.errors import CorruptArtifactError, StoreError
+
+log = logging.getLogger(__name__)
+
+STORE_ENV_VAR = "REPBENCH_STORE"
+META = "meta.json"
+STORE_FORMAT = 1
+
+
+def default_store_root() -> Path:
+    """``$REPBENCH_STORE``, else ``$XDG_CACHE_HOME/repbench/store``, else ``~/.cache/...``."""
+    if os.environ.get(STORE_ENV_VAR):
+        return Path(os.environ[STORE_ENV_VAR]).expanduser()
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "repbench" / "store"
+
+
+def canonical_json(obj: Any) -> str:
+    """Deterministic JSON used for hashing (sorted keys, no whitespace)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=_json_default)
+
+
+def _json_default(obj: Any) -> Any:
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot hash a {type(obj).__name__} in a stage config; use plain values")
+
+
+def stage_key(stage: str, config: Mapping[str, Any], inputs: Sequence[str] = ()) -> str:
+    """Content hash of a stage: its name, its config and its inputs' keys."""
+    payload = canonical_json({"stage": stage, "config": config, "inputs": list(inputs),
+                              "format": STORE_FORMAT})
+    return hashlib.sha256(payload.encode()).hexdigest()[:32]
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def library_versions() -> dict[str, str]:
+    """Versions of the libraries that shape results."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for dist in ("repbench", "numpy", "torch", "scipy", "scikit-learn", "pandas", "mujoco",
+                 "robosuite", "gymnasium", "stable-baselines3"):
+        try:
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            pass
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def git_commit() -> str | None:
+    """The git commit of the working directory's repository, when there is one."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                             timeout=5, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None if out.returncode == 0 else None
+
+
+@dataclass(frozen=True)
+class Artifact:
+    """A finished, verified stage output."""
+
+    stage: str
+    key: str
+    path: Path
+    meta: dict[str, Any]
+
+    def file(self, name: str) -> Path:
+        return self.path / name
+
+    def read_json(self, name: str = "result.json") -> Any:
+        with open(self.path / name) as f:
+            return json.load(f)
+
+
+class ArtifactWriter:
+    """Collects a stage's files in a private temporary directory until commit."""
+
+    def __init__(self, tmp_dir: Path) -> None:
+        self.path = tmp_dir
+        self.result: Any = None
+        self.extra_meta: dict[str, Any] = {}
+
+    def file(self, name: str) -> Path:
+        """Path to write a file of the artifact to."""
+        return self.path / name
+
+    def write_json(self, obj: Any, name: str = "result.json") -> Path:
+        p = self.path / name
+        with open(p, "w") as f:
+            json.dump(obj, f, default=_json_default)
+        return p
+
+
+class Store:
+    """Content-addressed, crash-safe storage of stage outputs.
+
+    Args:
+        root: directory to use; default :func:`default_store_root`. Created if missing;
+            an unwritable root raises :class:`StoreError` at once.
+    """
+
+    def __init__(self, root: str | os.PathLike[str] | None = None) -> None:
+        self.root = Path(root).expanduser() if root is not None else default_store_root()
+        try:
+            (self.root / ".tmp").mkdir(parents=True, exist_ok=True)
+            probe = self.root / ".tmp" / f".probe-{uuid.uuid4().hex}"
+            probe.write_text("ok")
+            probe.unlink()
+        except OSError as exc:
+            raise StoreError(
+                f"store root {self.root} is not writable ({exc.strerror or exc}); pass --store DIR "
+                f"or set {STORE_ENV_VAR} to a writable directory"
+            ) from None
+
+    def artifact_dir(self, stage: str, key: str) -> Path:
+        return self.root / stage / key
+
+    def key(self, stage: str, config: Mapping[str, Any], inputs: Sequence[str] = ()) -> str:
+        return stage_key(stage, config, inputs)
+
+    # -- reading ---------------------------------------------------------------------------------
+    def get(self, stage: str, key: str, *, verify: bool = True) -> Artifact | None:
+        """The finished artifact, or None if absent; a corrupt one is quarantined → None."""
+        path = self.artifact_dir(stage, key)
+        if not path.is_dir():
+            return None
+        try:
+            return self._load(stage, key, path, verify=verify)
+        except CorruptArtifactError as exc:
+            log.warning("%s; it will be recomputed", exc)
+            self._quarantine(path)
+            return None
+
+    def _load(self, stage: str, key: str, path: Path, *, verify: bool) -> Artifact:
+        try:
+            with open(path / META) as f:
+                meta = json.load(f)
+        except (OSError, json.JSONDecodeError) as exc:
+            raise CorruptArtifactError(f"artifact {stage}/{key} has no readable {META}: {exc}"
+                                       ) from None
+        if verify:
+            for name, digest in meta.get("files", {}).items():
+                fp = path / name
+                if not fp.is_file():
+                    raise CorruptArtifactError(f"artifact {stage}/{key} lacks file {name}")
+                if file_sha256(fp) != digest:
+                    raise CorruptArtifactError(
+                        f"artifact {stage}/{key} file {name} fails its checksum (truncated or "
+                        "modified)"
+                    )
+        return Artifact(stage, key, path, meta)
+
+    def _quarantine(self, path: Path) -> None:
+        dest = self.root / ".corrupt" / f"{path.parent.name}-{path.name}-{uuid.uuid4().hex[:8]}"
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        with contextlib.suppress(OSError):
+            os.replace(path, dest)
+
+    def list(self, stage: str) -> list[Artifact]:
+        """Every verified artifact of a stage (used to rebuild leaderboards)."""
+        base = self.root / stage
+        if not base.is_dir():
+            return []
+        arts = (self.get(stage, p.name) for p in sorted(base.iterdir()) if p.is_dir())
+        return [a for a in arts if a is not None]
+
+    # -- writing ---------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def write(self, stage: str, key: str, *, config: Mapping[str, Any],
+              inputs: Sequence[str] = (), seeds: Mapping[str, Any] | None = None
+              ) -> Iterator[ArtifactWriter]:
+        """Context manager: write files into ``writer.path``; on success they are committed
+        atomically with their metadata record. On any exception nothing becomes visible."""
+        tmp = self.root / ".tmp" / f"{stage}-{key}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        tmp.mkdir(parents=True)
+        writer = ArtifactWriter(tmp)
+        start_wall, start_cpu = time.time(), time.process_time()
+        try:
+            yield writer
+            files = {p.name: file_sha256(p) for p in sorted(tmp.iterdir()) if p.is_file()}
+            for p in tmp.iterdir():
+                _fsync_file(p)
+            meta = {
+                "format": STORE_FORMAT, "stage": stage, "key": key, "config": config,
+                "inputs": list(inputs), "seeds": dict(seeds or {}), "files": files,
+                "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                "wall_time_s": round(time.time() - start_wall, 3),
+                "cpu_time_s": round(time.process_time() - start_cpu, 3),
+                "versions": library_versions(), "git_commit": git_commit(),
+                "host": platform.node(), **writer.extra_meta,
+            }
+            meta_path = tmp / META
+            with open(meta_path, "w") as f:
+                f.write(json.dumps(meta, indent=1, default=_json_default))
+                f.flush()
+                os.fsync(f.fileno())
+            final = self.artifact_dir(stage, key)
+            final.parent.mkdir(parents=True, exist_ok=True)
+            if final.exists():  # another worker finished first, or a corrupt leftover
+                if self.get(stage, key) is not None:
+                    shutil.rmtree(tmp, ignore_errors=True)
+                    return
+            os.rename(tmp, final)
+            _fsync_dir(final.parent)
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+
+    def clean_tmp(self, older_than_s: float = 3600.0) -> int:
+        """Remove temporary directories left by killed writers; returns how many."""
+        removed = 0
+        now = time.time()
+        for p in (self.root / ".tmp").iterdir():
+            if p.is_dir() and now - p.stat().st_mtime > older_than_s:
+                shutil.rmtree(p, ignore_errors=True)
+                removed += 1
+        return removed
+
+
+def _fsync_file(path: Path) -> None:
+    if path.is_file():
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _fsync_dir(path: Path) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)

@@ -1,0 +1,153 @@
+"""Suites: which tasks × encoders × metrics × agents × seeds, with sizes and budgets.
+
+A suite is a TOML file. ``smoke``, ``quick`` and ``paper`` ship inside the package
+(``repbench/suites/``); any other path is read as a user's suite file. Files are validated on
+load; an error names the file and the field.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, PositiveInt, ValidationError, field_validator
+
+from repbench.errors import ConfigError
+
+BUILTIN_SUITES = ("smoke", "quick", "paper")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class DatasetConfig(_Strict):
+    """Sizes of the encoder-training datasets."""
+
+    random_episodes: PositiveInt = Field(description="backwards-exploration episodes "
+                                                     "(one per hole position in the paper: 25)")
+    random_steps: PositiveInt = Field(description="steps per random episode (paper: 300)")
+    on_policy_episodes: int = Field(ge=0, description="episodes by the full-state agent")
+    on_policy_steps: PositiveInt = Field(description="steps per on-policy episode")
+    seed: int = Field(default=0, description="collection seed")
+
+
+class EncoderTrainingConfig(_Strict):
+    """Shared encoder-training settings (per-encoder overrides in ``encoder_params``)."""
+
+    latent_dim: PositiveInt = Field(default=16, description="latent size D (paper: 16)")
+    epochs: PositiveInt = Field(description="training epochs over the random dataset")
+    batch_size: PositiveInt = Field(default=64, description="minibatch size")
+    seed: int = Field(default=0, description="encoder initialisation/training seed")
+
+
+class RLConfig(_Strict):
+    """Downstream-RL budgets."""
+
+    train_steps: PositiveInt = Field(description="environment steps per training run "
+                                                 "(paper: 150k)")
+    eval_episodes: PositiveInt = Field(description="fixed evaluation episodes "
+                                                   "(paper: 20k steps)")
+    curve_points: PositiveInt = Field(default=5, description="learning-curve evaluations")
+    full_state_train_steps: PositiveInt = Field(description="steps for the full-state SAC agent "
+                                                            "that collects the on-policy dataset")
+
+
+class MetricsConfig(_Strict):
+    """Which data the metrics are computed on."""
+
+    bootstrap: PositiveInt = Field(default=100, description="bootstrap resamples for CIs")
+    seed: int = Field(default=0, description="metric seed")
+
+
+class Suite(_Strict):
+    """A validated suite file."""
+
+    name: str
+    description: str = ""
+    tasks: list[str] = Field(min_length=1)
+    encoders: list[str] = Field(min_length=1)
+    metrics: list[str] = Field(min_length=1)
+    agents: list[str] = Field(min_length=1)
+    seeds: list[int] = Field(min_length=1, description="RL seeds")
+    dataset: DatasetConfig
+    encoder_training: EncoderTrainingConfig
+    rl: RLConfig
+    metric_settings: MetricsConfig = MetricsConfig()
+    task_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    encoder_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    metric_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    agent_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    source: str = Field(default="", exclude=True, description="file the suite was read from")
+
+    @field_validator("tasks", "encoders", "metrics", "agents")
+    @classmethod
+    def _unique(cls, v: list[str]) -> list[str]:
+        dupes = sorted({x for x in v if v.count(x) > 1})
+        if dupes:
+            raise ValueError(f"listed more than once: {dupes}")
+        return v
+
+    def check_plugins(self) -> None:
+        """Check every named plugin is registered (reads entry points; imports nothing heavy)."""
+        from repbench.registry import REGISTRIES
+
+        for field_name in ("tasks", "encoders", "metrics", "agents"):
+            reg = REGISTRIES[field_name]
+            for name in getattr(self, field_name):
+                if name not in reg:
+                    raise ConfigError(f"suite {self.source or self.name}, field "
+                                      f"{field_name!r}: {reg._unknown_message(name)}")
+        for field_name, kind in (("task_params", "tasks"), ("encoder_params", "encoders"),
+                                 ("metric_params", "metrics"), ("agent_params", "agents")):
+            listed = set(getattr(self, kind))
+            for name in getattr(self, field_name):
+                if name not in listed:
+                    raise ConfigError(
+                        f"suite {self.source or self.name}, field {field_name!r}: {name!r} is "
+                        f"not in {kind} {sorted(listed)}; remove it or add it there"
+                    )
+
+
+def load_suite(name_or_path: str | Path) -> Suite:
+    """Load a built-in suite by name (``smoke``) or a suite file by path."""
+    text, source = _read_suite_text(name_or_path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"suite file {source}: not valid TOML ({exc})") from None
+    data.setdefault("name", Path(source).stem)
+    try:
+        suite = Suite.model_validate({**data, "source": source})
+    except ValidationError as exc:
+        raise ConfigError(f"suite file {source}: {_first_error(exc)}") from None
+    return suite
+
+
+def _read_suite_text(name_or_path: str | Path) -> tuple[str, str]:
+    name = str(name_or_path)
+    if name in BUILTIN_SUITES:
+        ref = resources.files("repbench.suites") / f"{name}.toml"
+        return ref.read_text(), f"<built-in suite {name}>"
+    path = Path(name).expanduser()
+    if not path.is_file():
+        raise ConfigError(
+            f"suite {name!r} is neither a built-in suite ({', '.join(BUILTIN_SUITES)}) nor an "
+            "existing file; check the name or path"
+        )
+    return path.read_text(), str(path)
+
+
+def _first_error(exc: ValidationError) -> str:
+    errors = exc.errors()
+    parts = []
+    for err in errors[:3]:
+        loc = ".".join(str(p) for p in err["loc"])
+        msg = err["msg"]
+        if err["type"] == "extra_forbidden":
+            msg = "unknown key (misspelled?)"
+        parts.append(f"field {loc!r}: {msg}")
+    more = f" (and {len(errors) - 3} more)" if len(errors) > 3 else ""
+    return "; ".join(parts) + more

@@ -1,0 +1,54 @@
+"""The task API: a gymnasium environment factory, the true state z°, and data collection.
+
+A task's environment returns dict observations with the modalities ``image`` (uint8 HxWx3),
+``ft`` (6-axis wrist force/torque), ``proprio`` (robot position and velocity) and
+``last_action``; ``info["true_state"]`` carries z° and ``info["is_success"]`` the success flag at
+every ``reset`` and ``step``.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from repbench.dataset import PROPRIO, Dataset
+
+#: A data-collection policy: observation batch of one step (modality → array, with
+#: ``true_state`` added) → action.
+Policy = Callable[[Mapping[str, np.ndarray]], np.ndarray]
+
+
+class Task(abc.ABC):
+    """Base class of all tasks. The constructor stores hyperparameters only."""
+
+    #: Versioned id, as in gymnasium (``PegInHole-v0``).
+    task_id: ClassVar[str]
+
+    @abc.abstractmethod
+    def make_env(self, seed: int | None = None, **overrides: Any) -> Any:
+        """Build a fresh gymnasium environment (dict observations, continuous actions)."""
+
+    @abc.abstractmethod
+    def true_state(self, env: Any) -> np.ndarray:
+        """The true state z° of ``env`` now, float32 [S]."""
+
+    @abc.abstractmethod
+    def collect(self, kind: str, *, n_episodes: int, steps_per_episode: int, seed: int,
+                policy: Policy | None = None, progress: bool = True) -> Dataset:
+        """Collect a dataset: ``kind="random"`` (backwards exploration from the goal) or
+        ``kind="on_policy"`` (``policy`` required)."""
+
+    def robot_state(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The robot-state part of an observation, appended to μ_z for the RL agent."""
+        return np.asarray(observation[PROPRIO], dtype=np.float32)
+
+    def get_params(self) -> dict[str, Any]:
+        import inspect
+
+        sig = inspect.signature(type(self).__init__)
+        return {p: getattr(self, p) for p in sig.parameters if p != "self"
+                and sig.parameters[p].kind not in (inspect.Parameter.VAR_POSITIONAL,
+                                                   inspect.Parameter.VAR_KEYWORD)}

@@ -1,0 +1,1 @@
+"""Built-in task plugins for repbench (installed as ``repbench_tasks``)."""
