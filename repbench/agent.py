@@ -50,6 +50,7 @@ class Agent(abc.ABC):
 
     @abc.abstractmethod
     def train(self, task: Task, encoder: Encoder, *, train_steps: int, seed: int,
-              eval_episodes: int, progress: bool = True) -> AgentResult:
+              eval_episodes: int, curve_points: int = 5, progress: bool = True
+              ) -> AgentResult:
         """Train on ``task`` observed through frozen ``encoder`` (μ_z ⊕ robot state) and
         evaluate on fixed episodes (the same for every encoder)."""

@@ -1,0 +1,139 @@
+"""The ``repbench`` command line.
+
+User errors (unknown names, bad suite files, unwritable stores, damaged files) print one line and
+exit with code 2; a traceback means a bug in repbench or a plugin.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from repbench.errors import RepbenchError
+
+app = typer.Typer(
+    help="repbench: which learned state representation is good for control, and which "
+    "representation metric predicts RL performance.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+task_app = typer.Typer(help="Inspect tasks.", no_args_is_help=True)
+app.add_typer(task_app, name="task")
+
+KINDS = ("tasks", "encoders", "metrics", "agents")
+
+StoreOpt = Annotated[
+    Optional[Path],  # noqa: UP045 (typer needs Optional on 3.10)
+    typer.Option("--store", help="Stage-store directory [env REPBENCH_STORE; default "
+                 "~/.cache/repbench/store].", envvar="REPBENCH_STORE", show_default=False),
+]
+
+
+@app.command("list")
+def list_plugins(
+    kind: Annotated[Optional[str], typer.Argument(  # noqa: UP045
+        help="tasks, encoders, metrics or agents (default: all four).")] = None,
+) -> None:
+    """List registered plugins with one-line descriptions."""
+    from repbench.registry import REGISTRIES
+
+    if kind is not None and kind not in REGISTRIES:
+        raise RepbenchError(f"unknown plugin kind {kind!r}; choose one of {', '.join(KINDS)}")
+    for k in [kind] if kind else list(KINDS):
+        reg = REGISTRIES[k]
+        typer.echo(f"{k}:")
+        for name in reg.names():
+            try:
+                desc = reg.describe(name)
+            except RepbenchError as exc:
+                desc = f"[cannot load: {exc}]"
+            typer.echo(f"  {name:<22} {desc}")
+
+
+@app.command()
+def doctor() -> None:
+    """Check the installation: library versions, rendering backend, a real 64×64 offscreen
+    render, CPU/GPU, and what to fix."""
+    from repbench.doctor import run_doctor
+
+    ok = run_doctor(echo=typer.echo)
+    raise typer.Exit(0 if ok else 1)
+
+
+@app.command()
+def run(
+    suite: Annotated[str, typer.Option("--suite", "-s", help="smoke, quick, paper, or a "
+                                       "suite TOML file.")] = "smoke",
+    store: StoreOpt = None,
+    out: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--out", help="Leaderboard folder [default: leaderboards/<suite>].")] = None,
+    executor: Annotated[str, typer.Option(help="local or ray.")] = "local",
+    workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
+        help="Parallel workers for the local executor [default: CPU count].")] = None,
+    ray_address: Annotated[Optional[str], typer.Option(  # noqa: UP045
+        "--ray-address", help="Join this Ray cluster (e.g. 'auto'); otherwise start a local "
+        "Ray instance.")] = None,
+) -> None:
+    """Run a suite: datasets → encoders → latents → metrics → RL → correlations →
+    leaderboards. Finished stages are reused from the store, so an interrupted run resumes."""
+    from repbench.runner import run_suite
+
+    result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
+                       ray_address=ray_address)
+    typer.echo(f"leaderboards written to {result.out_dir}")
+    if result.report.failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def leaderboard(
+    suite: Annotated[str, typer.Option("--suite", "-s", help="Suite whose results to "
+                                       "collect.")] = "smoke",
+    store: StoreOpt = None,
+    out: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--out", help="Output folder [default: leaderboards/<suite>].")] = None,
+) -> None:
+    """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
+    from repbench.runner import rebuild_leaderboards
+
+    out_dir = rebuild_leaderboards(suite, store=store, out=out)
+    typer.echo(f"leaderboards written to {out_dir}")
+
+
+@task_app.command("preview")
+def task_preview(
+    task: Annotated[str, typer.Argument(help="Registered task id, e.g. PegInHole-v0.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write.")] = Path(
+        "preview.png"),
+    frames: Annotated[int, typer.Option(help="Number of frames.")] = 24,
+    seed: Annotated[int, typer.Option(help="Rollout seed.")] = 0,
+) -> None:
+    """Contact sheet of wrist-camera frames from one rollout, force magnitude beside each."""
+    from repbench.preview import render_preview
+    from repbench.registry import tasks
+
+    path = render_preview(tasks.get(task)(), out, n_frames=frames, seed=seed)
+    typer.echo(f"preview written to {path}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console entry point: user errors → one line on stderr, exit code 2."""
+    try:
+        app(args=argv, prog_name="repbench", standalone_mode=True)
+    except RepbenchError as exc:
+        typer.echo(f"repbench: error: {exc}", err=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        typer.echo("repbench: interrupted; finished stages are kept in the store — run the "
+                   "same command again to resume", err=True)
+        sys.exit(130)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    os.environ.setdefault("PYTHONUNBUFFERED", "1")
+    main()

@@ -1,0 +1,192 @@
+"""This run's versions of the paper's figures, as PNG files (matplotlib, no display needed).
+
+* ``metric_vs_return.png`` — every metric against final RL return, one panel per agent × metric
+  (paper Fig. 3a, 4 and, for ``smoothness_objective``, 6b);
+* ``learning_curves.png`` — return against training steps (Fig. 3b);
+* ``latent_distance.png`` — E‖z_n − z_{n+T}‖ against the offset T (Fig. 5a);
+* ``smoothness_hist.png`` — ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ histograms (Fig. 5b);
+* ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from repbench.correlation import mean_ci
+
+
+def _colors(names: list[str]) -> dict[str, Any]:
+    cmap = plt.get_cmap("tab20")
+    return {n: cmap(i % 20) for i, n in enumerate(sorted(names))}
+
+
+def _save(fig: Any, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def metric_vs_return(res: Any, path: Path) -> Path | None:
+    """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI)."""
+    if not res.metric_rows or not res.rl_rows:
+        return None
+    metrics = sorted({r["metric"] for r in res.metric_rows})
+    agents = sorted({r["agent"] for r in res.rl_rows})
+    encs = sorted({r["encoder"] for r in res.metric_rows})
+    colors = _colors(encs)
+    fig, axes = plt.subplots(len(agents), len(metrics), squeeze=False,
+                             figsize=(3.0 * len(metrics), 2.8 * len(agents)))
+    for i, agent in enumerate(agents):
+        rets: dict[str, list[float]] = {}
+        for r in res.rl_rows:
+            if r["agent"] == agent:
+                rets.setdefault(r["encoder"], []).append(r["eval_return"])
+        for j, metric in enumerate(metrics):
+            ax = axes[i][j]
+            for r in res.metric_rows:
+                if r["metric"] != metric or r["encoder"] not in rets:
+                    continue
+                m, lo, hi = mean_ci(rets[r["encoder"]])
+                x = r["value"]
+                xerr = None
+                if r.get("ci_low") is not None and r.get("ci_high") is not None:
+                    xerr = [[max(0.0, x - r["ci_low"])], [max(0.0, r["ci_high"] - x)]]
+                yerr = [[m - lo], [hi - m]] if np.isfinite(lo) else None
+                ax.errorbar(x, m, xerr=xerr, yerr=yerr, fmt="o", color=colors[r["encoder"]],
+                            ms=5, capsize=2, label=r["encoder"])
+                ax.annotate(r["encoder"], (x, m), fontsize=6, xytext=(3, 3),
+                            textcoords="offset points")
+            arrow = "↑" if res.provenance.get("directions", {}).get(metric, True) else "↓"
+            ax.set_title(f"{metric} {arrow}", fontsize=9)
+            ax.tick_params(labelsize=7)
+            if j == 0:
+                ax.set_ylabel(f"{agent} eval return", fontsize=8)
+    fig.suptitle("Metric vs RL return (one point per encoder; bars: CI)", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def learning_curves(res: Any, path: Path) -> Path | None:
+    """Mean learning curve over seeds for every encoder, one panel per agent."""
+    if not res.rl_rows:
+        return None
+    agents = sorted({r["agent"] for r in res.rl_rows})
+    encs = sorted({r["encoder"] for r in res.rl_rows})
+    colors = _colors(encs)
+    fig, axes = plt.subplots(1, len(agents), squeeze=False, figsize=(5 * len(agents), 3.4))
+    for ax, agent in zip(axes[0], agents, strict=True):
+        for enc in encs:
+            runs = [r for r in res.rl_rows if r["agent"] == agent and r["encoder"] == enc
+                    and r.get("curve_steps")]
+            if not runs:
+                continue
+            n = min(len(r["curve_steps"]) for r in runs)
+            steps = np.asarray(runs[0]["curve_steps"][:n])
+            ys = np.array([r["curve_return"][:n] for r in runs], dtype=float)
+            ax.plot(steps, ys.mean(0), marker=".", color=colors[enc], label=enc)
+        ax.set_title(f"{agent}: return during training", fontsize=9)
+        ax.set_xlabel("environment steps", fontsize=8)
+        ax.set_ylabel("return", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0][-1].legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _smoothness_extras(res: Any) -> dict[str, Mapping[str, Any]]:
+    return {r["encoder"]: r.get("extras") or {} for r in res.metric_rows
+            if r["metric"] == "smoothness"}
+
+
+def latent_distance(res: Any, path: Path) -> Path | None:
+    """E‖z_n − z_{n+T}‖ against T for every encoder (from the smoothness metric's extras)."""
+    extras = _smoothness_extras(res)
+    curves = {e: x["latent_distance"] for e, x in extras.items() if x.get("latent_distance")}
+    if not curves:
+        return None
+    colors = _colors(list(curves))
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    for enc, c in sorted(curves.items()):
+        ax.plot(c["offsets"], c["mean"], marker=".", color=colors[enc], label=enc)
+    ax.set_xlabel("time offset T (steps)")
+    ax.set_ylabel("E‖z_n − z_{n+T}‖ (standardized z)")
+    ax.set_title("Latent distance against time offset", fontsize=10)
+    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def smoothness_hist(res: Any, path: Path) -> Path | None:
+    """Histogram of ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ for every encoder."""
+    extras = _smoothness_extras(res)
+    hists = {e: x["ratio_histogram"] for e, x in extras.items() if x.get("ratio_histogram")}
+    if not hists:
+        return None
+    colors = _colors(list(hists))
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    for enc, h in sorted(hists.items()):
+        edges = np.asarray(h["edges"], dtype=float)
+        counts = np.asarray(h["counts"], dtype=float)
+        dens = counts / max(1.0, counts.sum())
+        ax.stairs(dens, edges, color=colors[enc], label=enc)
+    ax.set_xscale("log")
+    ax.set_xlabel("‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖")
+    ax.set_ylabel("fraction of pairs")
+    ax.set_title("Encoder smoothness", fontsize=10)
+    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def true_state_diffs(res: Any, path: Path) -> Path | None:
+    """First and second differences of z° (summed over dimensions), per dataset."""
+    panels = []
+    for task, by_source in res.diagnostics.items():
+        for source, d in by_source.items():
+            for order in ("first", "second"):
+                h = (d.get(order) or {}).get("sum_histogram")
+                if h:
+                    panels.append((f"{task} {source}: {order} difference", h))
+    if not panels:
+        return None
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(3.2 * len(panels), 2.8))
+    for ax, (title, h) in zip(axes[0], panels, strict=True):
+        ax.stairs(np.asarray(h["counts"], float), np.asarray(h["edges"], float), fill=True,
+                  alpha=0.7)
+        ax.set_title(title, fontsize=8)
+        ax.tick_params(labelsize=7)
+    fig.suptitle("Distribution of true-state differences (sum over dimensions)", fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def make_figures(res: Any, encoders_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
+    """Render every figure that the results support; name → PNG path."""
+    makers = {
+        "Metric vs RL return (paper Fig. 3a, 4, 6b)": (metric_vs_return, "metric_vs_return"),
+        "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
+        "Latent distance vs time offset (Fig. 5a)": (latent_distance, "latent_distance"),
+        "Encoder smoothness histogram (Fig. 5b)": (smoothness_hist, "smoothness_hist"),
+        "True-state differences (Fig. 6a)": (true_state_diffs, "true_state_diffs"),
+    }
+    out: dict[str, Path] = {}
+    for title, (fn, stem) in makers.items():
+        p = fn(res, out_dir / f"{stem}.png")
+        if p is not None:
+            out[title] = p
+    for name, src in sorted(res.figures_from_store.items()):
+        dest = out_dir / f"{name.replace(' ', '_')}.png"
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_bytes(src.read_bytes())
+        out[f"Reconstructions: {name.split(' ', 1)[1]} (appendix figure)"] = dest
+    return out

@@ -1,0 +1,140 @@
+"""One self-contained leaderboard page: no network access, figures inlined, tables sortable.
+
+Every piece of text that comes from a user (encoder names, suite descriptions, error strings) is
+escaped with :func:`html.escape`.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px auto;
+max-width:1200px;color:#1d2433;padding:0 16px}
+h1{font-size:1.6em;margin-bottom:0}h2{margin-top:1.6em;border-bottom:1px solid #dde;
+padding-bottom:4px}.sub{color:#667;margin-top:4px}
+table{border-collapse:collapse;font-size:12.5px;margin:8px 0;display:block;overflow-x:auto}
+th,td{padding:4px 8px;border-bottom:1px solid #eef;text-align:right;white-space:nowrap}
+th{background:#f4f6fb;cursor:pointer;position:sticky;top:0;user-select:none}
+th.sorted-asc::after{content:" ▲"}th.sorted-desc::after{content:" ▼"}
+td.txt,th.txt{text-align:left}tr:hover td{background:#fafbff}
+.ci{color:#889;font-size:11px}.fig{margin:12px 0}.fig img{max-width:100%;border:1px solid #eee}
+.note{background:#f7f7fa;border-left:3px solid #99a;padding:8px 12px;font-size:13px}
+code{background:#f2f2f6;padding:1px 4px;border-radius:3px}
+"""
+
+_JS = """
+document.querySelectorAll('table.sortable').forEach(function(table){
+  table.querySelectorAll('th').forEach(function(th, col){
+    th.addEventListener('click', function(){
+      var body = table.tBodies[0];
+      var rows = Array.from(body.rows);
+      var asc = !th.classList.contains('sorted-asc');
+      table.querySelectorAll('th').forEach(function(h){h.classList.remove('sorted-asc','sorted-desc');});
+      th.classList.add(asc ? 'sorted-asc' : 'sorted-desc');
+      rows.sort(function(a, b){
+        var x = a.cells[col].dataset.v, y = b.cells[col].dataset.v;
+        var nx = parseFloat(x), ny = parseFloat(y);
+        var cmp;
+        if (!isNaN(nx) && !isNaN(ny)) cmp = nx - ny;
+        else if (isNaN(nx) && !isNaN(ny)) return 1;
+        else if (!isNaN(nx) && isNaN(ny)) return -1;
+        else cmp = String(x).localeCompare(String(y));
+        return asc ? cmp : -cmp;
+      });
+      rows.forEach(function(r){ body.appendChild(r); });
+    });
+  });
+});
+"""
+
+
+def _fmt(v: Any) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True) -> str:
+    """HTML table; ``x_ci_low``/``x_ci_high`` columns fold into the cell of ``x``."""
+    if df.empty:
+        return "<p>No results yet.</p>"
+    cols = [c for c in df.columns if not (ci_cols and (c.endswith("_ci_low")
+                                                       or c.endswith("_ci_high")))]
+    head = "".join(
+        f'<th class="{"txt" if df[c].dtype == object else ""}">{html.escape(str(c))}</th>'
+        for c in cols)
+    body = []
+    for _, row in df.iterrows():
+        cells = []
+        for c in cols:
+            v = row[c]
+            val = v.item() if hasattr(v, "item") else v
+            sort_v = "" if val is None or (isinstance(val, float) and math.isnan(val)) else val
+            text = html.escape(_fmt(val))
+            lo, hi = row.get(f"{c}_ci_low"), row.get(f"{c}_ci_high")
+            if ci_cols and lo is not None and hi is not None and pd.notna(lo) and pd.notna(hi):
+                text += f' <span class="ci">[{_fmt(float(lo))}, {_fmt(float(hi))}]</span>'
+            cls = "txt" if isinstance(val, str) else ""
+            cells.append(f'<td class="{cls}" data-v="{html.escape(str(sort_v))}">{text}</td>')
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return (f'<table class="sortable" id="{table_id}"><thead><tr>{head}</tr></thead>'
+            f"<tbody>{''.join(body)}</tbody></table>")
+
+
+def _img(path: Path, alt: str) -> str:
+    data = base64.b64encode(path.read_bytes()).decode()
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
+                figures: dict[str, Path]) -> str:
+    """The whole page as a string."""
+    prov = res.provenance
+    title = f"repbench leaderboard — suite {prov.get('suite', '?')}"
+    corr_cols = ["task", "agent", "metric", "higher_is_better", "n_encoders", "spearman",
+                 "spearman_ci_low", "spearman_ci_high", "spearman_p", "pearson",
+                 "pearson_ci_low", "pearson_ci_high", "pearson_p", "kendall", "kendall_ci_low",
+                 "kendall_ci_high", "kendall_p"]
+    met = metrics_df[[c for c in corr_cols if c in metrics_df.columns]]
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+        f"<p class='sub'>{html.escape(prov.get('description') or '')}</p>",
+        "<h2>Which metric predicts RL performance?</h2>",
+        "<p class='note'>Correlation across encoders between each metric and the final "
+        "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "
+        "a positive coefficient always means the metric ranks encoders as RL does. Brackets: "
+        "bootstrap 95% interval over encoders and seeds. Click a header to sort.</p>",
+        _table(met, "metrics"),
+        "<h2>Which encoder is best?</h2>",
+        "<p class='note'>One row per task × encoder: every metric with its confidence interval, "
+        "and per agent the evaluation return (mean and 95% t-interval over seeds) and success "
+        "rate.</p>",
+        _table(encoders_df, "encoders"),
+        "<h2>Figures</h2>",
+    ]
+    for name, path in figures.items():
+        parts.append(f"<div class='fig'><h3>{html.escape(name)}</h3>{_img(path, name)}</div>")
+    if not figures:
+        parts.append("<p>No figures: no finished results.</p>")
+    if res.missing:
+        parts.append("<h2>Missing results</h2><p class='note'>These stages have not finished "
+                     "(or failed); run the suite again to complete them.</p><ul>")
+        parts.extend(f"<li>{html.escape(m)}</li>" for m in res.missing[:200])
+        parts.append("</ul>")
+    parts.append("<h2>Provenance</h2><pre>" + html.escape(
+        json.dumps({k: v for k, v in prov.items() if k != "directions"}, indent=1,
+                   default=str)) + "</pre>")
+    parts.append(f"<script>{_JS}</script></body></html>")
+    return "\n".join(parts)

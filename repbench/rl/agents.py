@@ -1,0 +1,397 @@
+"""SAC and DDPG on ``task env ∘ frozen encoder``, built on Stable-Baselines3 (paper §IV).
+
+The agent observes ``μ_z ⊕ robot state`` (:mod:`repbench.rl.wrappers`). Hyperparameters follow
+the paper's appendix (two hidden layers of 96/128, Adam 1e-3/3e-3, replay 3e6, batch 256,
+τ = 0.005, SAC with automatic entropy tuning, DDPG with constant Gaussian exploration noise of
+0.25 × the maximum action); the ``paper`` suite passes exactly those keys.
+
+A training run reads top to bottom in :meth:`SB3Agent.train_model`:
+
+1. build the encoded training environment(s) (``n_envs`` > 1: one process each);
+2. build the SB3 model (``device="auto"`` → CUDA when present);
+3. ``model.learn`` with a callback that samples the learning curve on fixed episodes;
+4. evaluate the final policy on the fixed evaluation episodes (seeds ``10_000 + i``), the same
+   hole positions and initial states for every encoder.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from repbench.agent import Agent, AgentResult
+from repbench.encoder import Encoder
+from repbench.errors import ConfigError, TrainingDivergedError
+from repbench.rl.wrappers import check_encoder_ready, encoder_label, make_encoded_env
+from repbench.task import Task
+
+#: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` for every encoder and agent.
+EVAL_SEED_BASE = 10_000
+
+
+def eval_seeds(n: int) -> list[int]:
+    """The fixed reset seeds of ``n`` evaluation episodes."""
+    return [EVAL_SEED_BASE + i for i in range(n)]
+
+
+def resolve_device(device: str) -> str:
+    """``"auto"`` → ``"cuda"`` if torch sees a GPU, else ``"cpu"``; anything else unchanged."""
+    if device == "auto":
+        import torch
+
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    return device
+
+
+def evaluate(model: Any, env: Any, seeds: Sequence[int], *, deterministic: bool = True
+             ) -> tuple[list[float], list[bool]]:
+    """Run one episode per reset seed; return per-episode returns and successes.
+
+    An episode counts as a success if ``info["is_success"]`` was true at any step.
+    """
+    returns, successes = [], []
+    for s in seeds:
+        obs, info = env.reset(seed=int(s))
+        total, success, done = 0.0, bool(info.get("is_success", False)), False
+        while not done:
+            action, _ = model.predict(obs, deterministic=deterministic)
+            obs, reward, terminated, truncated, info = env.step(action)
+            total += float(reward)
+            success = success or bool(info.get("is_success", False))
+            done = terminated or truncated
+        returns.append(total)
+        successes.append(success)
+    return returns, successes
+
+
+def _make_curve_callback(agent_name: str, encoder_name: str, eval_env: Any,
+                         seeds: list[int], points: list[int], total: int, progress: bool) -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+    from tqdm.auto import tqdm
+
+    class CurveCallback(BaseCallback):
+        """Samples the learning curve at ``points`` (env steps) on fixed episodes."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.steps: list[int] = []
+            self.returns: list[float] = []
+            self.success: list[float] = []
+            self._next = 0
+            self._bar: Any = None
+
+        def _on_training_start(self) -> None:
+            self._bar = tqdm(total=total, desc=f"{agent_name} on {encoder_name}",
+                             disable=not progress, unit="step")
+
+        def _on_step(self) -> bool:
+            self._bar.update(self.training_env.num_envs)
+            while self._next < len(points) and self.num_timesteps >= points[self._next]:
+                self._check_finite()
+                rets, succ = evaluate(self.model, eval_env, seeds)
+                self.steps.append(int(self.num_timesteps))
+                self.returns.append(float(np.mean(rets)))
+                self.success.append(float(np.mean(succ)))
+                self._bar.set_postfix(ret=f"{self.returns[-1]:.2f}",
+                                      succ=f"{self.success[-1]:.2f}")
+                self._next += 1
+            return True
+
+        def _on_training_end(self) -> None:
+            self._bar.close()
+
+        def _check_finite(self) -> None:
+            for name, p in self.model.policy.named_parameters():
+                if not bool(p.detach().isfinite().all()):
+                    raise TrainingDivergedError(
+                        f"{agent_name} on encoder {encoder_name} diverged at step "
+                        f"{self.num_timesteps} (non-finite weights in {name}); lower "
+                        "learning_rate or check the encoder's latent scale"
+                    )
+
+    return CurveCallback()
+
+
+class SB3Agent(Agent):
+    """Shared machinery of the Stable-Baselines3 agents (see :class:`SACAgent`)."""
+
+    name: ClassVar[str] = "sb3"
+    #: SB3 algorithm name (``stable_baselines3.<ALGO>``).
+    algorithm: ClassVar[str] = ""
+
+    def __init__(self, hidden_sizes: Sequence[int] = (128, 128), learning_rate: float = 1e-3,
+                 buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
+                 learning_starts: int = 1000, gamma: float = 0.99, gradient_steps: int = -1,
+                 curve_episodes: int = 5, device: str = "auto", n_envs: int = 1,
+                 progress: bool = True) -> None:
+        self.hidden_sizes = hidden_sizes
+        self.learning_rate = learning_rate
+        self.buffer_size = buffer_size
+        self.batch_size = batch_size
+        self.tau = tau
+        self.learning_starts = learning_starts
+        self.gamma = gamma
+        self.gradient_steps = gradient_steps
+        self.curve_episodes = curve_episodes
+        self.device = device
+        self.n_envs = n_envs
+        self.progress = progress
+
+    # -- parameters ----------------------------------------------------------------------------
+    def get_params(self) -> dict[str, Any]:
+        """Constructor arguments (rebuild with ``type(a)(**a.get_params())``)."""
+        import inspect
+
+        sig = inspect.signature(type(self).__init__)
+        return {p: getattr(self, p) for p in sig.parameters if p != "self"}
+
+    def _fail(self, field: str, why: str) -> ConfigError:
+        return ConfigError(f"agent {self.name!r}: parameter {field}={getattr(self, field)!r} "
+                           f"{why}")
+
+    def validate(self, train_steps: int) -> None:
+        """Raise ConfigError naming the agent and the bad parameter."""
+        hs = self.hidden_sizes
+        if (not isinstance(hs, (list, tuple)) or not hs
+                or not all(isinstance(h, int) and h > 0 for h in hs)):
+            raise self._fail("hidden_sizes", "must be a non-empty list of positive ints")
+        if not (isinstance(self.learning_rate, (int, float)) and self.learning_rate > 0):
+            raise self._fail("learning_rate", "must be > 0")
+        for f in ("buffer_size", "batch_size", "n_envs", "curve_episodes"):
+            if not (isinstance(getattr(self, f), int) and getattr(self, f) > 0):
+                raise self._fail(f, "must be a positive int")
+        if not 0.0 < self.tau <= 1.0:
+            raise self._fail("tau", "must be in (0, 1]")
+        if not 0.0 <= self.gamma <= 1.0:
+            raise self._fail("gamma", "must be in [0, 1]")
+        if not isinstance(self.learning_starts, int) or self.learning_starts < 0:
+            raise self._fail("learning_starts", "must be an int >= 0")
+        if self.learning_starts >= train_steps:
+            raise self._fail("learning_starts", f"must be below train_steps={train_steps}, or "
+                                                "the agent never learns")
+        if self.gradient_steps == 0 or self.gradient_steps < -1:
+            raise self._fail("gradient_steps", "must be -1 (one per env step) or >= 1")
+        if self.device not in ("auto", "cpu", "cuda") and not str(self.device).startswith(
+                "cuda:"):
+            raise self._fail("device", "must be 'auto', 'cpu' or 'cuda[:i]'")
+
+    # -- to specialise -------------------------------------------------------------------------
+    def _algorithm_kwargs(self, env: Any) -> dict[str, Any]:
+        """Algorithm-specific keyword arguments (entropy, exploration noise)."""
+        return {}
+
+    # -- training ------------------------------------------------------------------------------
+    def _make_vec_env(self, task: Task, encoder: Encoder, seed: int) -> Any:
+        from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+        def factory(rank: int) -> Any:
+            def _init() -> Any:
+                if self.n_envs > 1:
+                    import torch
+
+                    torch.set_num_threads(1)  # one core per worker process
+                return make_encoded_env(task, encoder, seed=seed + rank)
+
+            return _init
+
+        fns = [factory(i) for i in range(self.n_envs)]
+        return SubprocVecEnv(fns) if self.n_envs > 1 else DummyVecEnv(fns)
+
+    def build_model(self, env: Any, seed: int, buffer_size: int | None = None) -> Any:
+        """The SB3 model for ``env`` (a flat-Box environment or VecEnv)."""
+        import stable_baselines3 as sb3
+
+        cls = getattr(sb3, self.algorithm)
+        return cls(
+            "MlpPolicy", env,
+            learning_rate=float(self.learning_rate),
+            buffer_size=int(self.buffer_size if buffer_size is None else buffer_size),
+            learning_starts=int(self.learning_starts),
+            batch_size=int(self.batch_size),
+            tau=float(self.tau),
+            gamma=float(self.gamma),
+            train_freq=1,
+            gradient_steps=int(self.gradient_steps),
+            policy_kwargs={"net_arch": [int(h) for h in self.hidden_sizes]},
+            seed=seed,
+            device=resolve_device(self.device),
+            verbose=0,
+            **self._algorithm_kwargs(env),
+        )
+
+    def train(self, task: Task, encoder: Encoder, *, train_steps: int, seed: int,
+              eval_episodes: int, curve_points: int = 5, progress: bool = True
+              ) -> AgentResult:
+        """Train on ``task`` seen through frozen ``encoder`` and evaluate on fixed episodes.
+
+        The trained SB3 model is kept as ``self.model_`` (save it with
+        :func:`repbench.rl.save_policy`).
+        """
+        model, result = self.train_model(task, encoder, train_steps=train_steps, seed=seed,
+                                         eval_episodes=eval_episodes, curve_points=curve_points,
+                                         progress=progress)
+        self.model_ = model
+        return result
+
+    def train_model(self, task: Task, encoder: Encoder, *, train_steps: int, seed: int,
+                    eval_episodes: int, curve_points: int = 5, progress: bool = True
+                    ) -> tuple[Any, AgentResult]:
+        """Like :meth:`train`, also returning the trained SB3 model."""
+        import torch
+
+        if not isinstance(train_steps, int) or train_steps <= 0:
+            raise ConfigError(f"agent {self.name!r}: train_steps must be a positive int, "
+                              f"got {train_steps!r}")
+        if not isinstance(eval_episodes, int) or eval_episodes <= 0:
+            raise ConfigError(f"agent {self.name!r}: eval_episodes must be a positive int, "
+                              f"got {eval_episodes!r}")
+        if not isinstance(curve_points, int) or curve_points <= 0:
+            raise ConfigError(f"agent {self.name!r}: curve_points must be a positive int, "
+                              f"got {curve_points!r}")
+        self.validate(train_steps)
+        check_encoder_ready(encoder)
+        progress = progress and self.progress
+        enc_name = encoder_label(encoder)
+        start = time.perf_counter()
+
+        # 1. environments: training (vectorised), evaluation (one, fixed reset seeds)
+        eval_env = make_encoded_env(task, encoder, seed=EVAL_SEED_BASE)
+        expected = int(eval_env.observation_space.shape[0])
+        env = self._make_vec_env(task, encoder, seed)
+        try:
+            # 2. model; the replay buffer never needs more than the run's transitions
+            buffer = min(self.buffer_size, train_steps + self.n_envs)
+            model = self.build_model(env, seed, buffer_size=buffer)
+            # 3. learn, sampling the learning curve
+            n_curve = min(self.curve_episodes, eval_episodes)
+            points = sorted({max(1, math.ceil(train_steps * (k + 1) / curve_points))
+                             for k in range(curve_points)})
+            callback = _make_curve_callback(self.name, enc_name, eval_env, eval_seeds(n_curve),
+                                            points, train_steps, progress)
+            t0 = time.perf_counter()
+            model.learn(total_timesteps=train_steps, callback=callback, progress_bar=False)
+            train_time = time.perf_counter() - t0
+        finally:
+            env.close()
+        # 4. final evaluation on the fixed episodes
+        rets, succ = evaluate(model, eval_env, eval_seeds(eval_episodes))
+        eval_env.close()
+        if not np.isfinite(rets).all():
+            raise TrainingDivergedError(f"{self.name} on encoder {enc_name}: evaluation "
+                                        "returns are not finite")
+        result = AgentResult(
+            curve_steps=list(callback.steps),
+            curve_return=list(callback.returns),
+            curve_success=list(callback.success),
+            eval_return=float(np.mean(rets)),
+            eval_success_rate=float(np.mean(succ)),
+            eval_episode_returns=[float(r) for r in rets],
+            train_steps=int(model.num_timesteps),
+            wall_time_s=float(time.perf_counter() - start),
+            steps_per_s=float(model.num_timesteps / max(train_time, 1e-9)),
+            extras={
+                "agent": self.name,
+                "encoder": enc_name,
+                "task": getattr(task, "task_id", type(task).__name__),
+                "seed": seed,
+                "params": {k: (list(v) if isinstance(v, tuple) else v)
+                           for k, v in self.get_params().items()},
+                "effective_buffer_size": buffer,
+                "device": str(model.device),
+                "observation_dim": expected,
+                "latent_dim": int(encoder.latent_dim),
+                "eval_seeds": eval_seeds(eval_episodes),
+                "eval_episode_success": [bool(s) for s in succ],
+                "curve_episodes": n_curve,
+                "train_time_s": float(train_time),
+                "torch_threads": torch.get_num_threads(),
+            },
+        )
+        return model, result
+
+
+class SACAgent(SB3Agent):
+    """Soft actor-critic (Stable-Baselines3) with automatic entropy tuning (paper §IV).
+
+    Args:
+        hidden_sizes: hidden layers of actor and critic (paper: two of 96 or 128).
+        learning_rate: Adam learning rate (paper: 3e-3 or 1e-3).
+        buffer_size: replay buffer capacity (paper: 3e6; capped at the run's length).
+        batch_size: minibatch size (paper: 256).
+        tau: soft target update coefficient (paper: 0.005).
+        ent_coef: entropy coefficient; ``"auto"`` (or ``"auto_<init>"``) tunes it.
+        learning_starts: uniformly random steps before learning starts.
+        gamma: discount factor.
+        gradient_steps: gradient steps per env step (-1: as many as transitions collected).
+        curve_episodes: fixed episodes per learning-curve point.
+        device: ``"auto"`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
+        n_envs: training environments; > 1 runs each in its own process (multi-core).
+        progress: show a progress bar.
+    """
+
+    name = "sac"
+    algorithm = "SAC"
+
+    def __init__(self, hidden_sizes: Sequence[int] = (128, 128), learning_rate: float = 1e-3,
+                 buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
+                 ent_coef: str | float = "auto", learning_starts: int = 1000,
+                 gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
+                 device: str = "auto", n_envs: int = 1, progress: bool = True) -> None:
+        super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
+                         buffer_size=buffer_size, batch_size=batch_size, tau=tau,
+                         learning_starts=learning_starts, gamma=gamma,
+                         gradient_steps=gradient_steps, curve_episodes=curve_episodes,
+                         device=device, n_envs=n_envs, progress=progress)
+        self.ent_coef = ent_coef
+
+    def validate(self, train_steps: int) -> None:
+        super().validate(train_steps)
+        ec = self.ent_coef
+        ok = (isinstance(ec, (int, float)) and ec > 0) or (
+            isinstance(ec, str) and (ec == "auto" or ec.startswith("auto_")))
+        if not ok:
+            raise self._fail("ent_coef", "must be 'auto', 'auto_<init>' or a float > 0")
+
+    def _algorithm_kwargs(self, env: Any) -> dict[str, Any]:
+        return {"ent_coef": self.ent_coef}
+
+
+class DDPGAgent(SB3Agent):
+    """DDPG (Stable-Baselines3) with constant Gaussian exploration noise (paper §IV).
+
+    Args:
+        action_noise: exploration noise standard deviation as a fraction of the maximum
+            action (paper: 0.25), constant over training.
+        (the others as in :class:`SACAgent`)
+    """
+
+    name = "ddpg"
+    algorithm = "DDPG"
+
+    def __init__(self, hidden_sizes: Sequence[int] = (128, 128), learning_rate: float = 1e-3,
+                 buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
+                 action_noise: float = 0.25, learning_starts: int = 1000,
+                 gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
+                 device: str = "auto", n_envs: int = 1, progress: bool = True) -> None:
+        super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
+                         buffer_size=buffer_size, batch_size=batch_size, tau=tau,
+                         learning_starts=learning_starts, gamma=gamma,
+                         gradient_steps=gradient_steps, curve_episodes=curve_episodes,
+                         device=device, n_envs=n_envs, progress=progress)
+        self.action_noise = action_noise
+
+    def validate(self, train_steps: int) -> None:
+        super().validate(train_steps)
+        if not (isinstance(self.action_noise, (int, float)) and self.action_noise >= 0):
+            raise self._fail("action_noise", "must be a float >= 0")
+
+    def _algorithm_kwargs(self, env: Any) -> dict[str, Any]:
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        high = np.abs(np.asarray(env.action_space.high, np.float64))
+        sigma = float(self.action_noise) * high
+        return {"action_noise": NormalActionNoise(mean=np.zeros_like(sigma), sigma=sigma)}

@@ -1,0 +1,158 @@
+"""The full-state agent and the ``on_policy`` dataset it collects (paper §IV).
+
+"A second dataset collects representation trajectories produced by a trained full-state SAC
+agent." Here: SAC on the ``oracle`` encoder (z° ⊕ robot state), trained once per task, saved in
+the runner's artifact store with :func:`save_policy`, reloaded with :func:`load_policy` as a
+:data:`repbench.task.Policy`, and passed to ``task.collect("on_policy", policy=...)``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from repbench.agent import AgentResult
+from repbench.dataset import IMAGE, TRUE_STATE, Dataset
+from repbench.encoder import Encoder
+from repbench.errors import ConfigError, DataError
+from repbench.rl.wrappers import ObservationEncoder, encoder_label
+from repbench.task import Task
+
+_ALGORITHMS = ("SAC", "DDPG")
+
+
+class EncodedPolicy:
+    """A trained SB3 model + frozen encoder as a :data:`repbench.task.Policy`.
+
+    Called on one step's observation dict (with ``true_state``) it returns the deterministic
+    action, float32 ``[A]``; on a batch of one (leading axis) it returns ``[1, A]``.
+    """
+
+    def __init__(self, model: Any, task: Task, encoder: Encoder) -> None:
+        expected = int(model.observation_space.shape[0])
+        self.model = model
+        self.task = task
+        self.encoder = encoder
+        self.features = ObservationEncoder(task, encoder, expected_dim=expected)
+        if encoder.latent_dim > expected:
+            raise ConfigError(
+                f"encoder {encoder_label(encoder)} has latent_dim {encoder.latent_dim} but the "
+                f"policy was trained on {expected} features: use the encoder it was trained with"
+            )
+
+    def __call__(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+        if TRUE_STATE not in observation:
+            raise DataError("the policy needs the observation dict with 'true_state' (add "
+                            "info['true_state'] to it)")
+        batched = np.asarray(observation[IMAGE]).ndim == 4
+        if batched:
+            if np.asarray(observation[IMAGE]).shape[0] != 1:
+                raise DataError("the policy takes one step's observation (batch of one)")
+            observation = {k: np.asarray(v)[0] for k, v in observation.items()}
+        obs = {k: v for k, v in observation.items() if k != TRUE_STATE}
+        features = self.features(obs, np.asarray(observation[TRUE_STATE]))
+        action, _ = self.model.predict(features, deterministic=True)
+        action = np.asarray(action, np.float32)
+        return action[None] if batched else action
+
+
+def save_policy(model: Any, path: str | os.PathLike[str]) -> Path:
+    """Save an SB3 SAC/DDPG model to ``path`` (a ``.zip``), atomically."""
+    path = Path(path)
+    algo = type(model).__name__
+    if algo not in _ALGORITHMS:
+        raise ConfigError(f"save_policy: expected an SB3 SAC or DDPG model, got {algo}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.zip")
+    model.save(tmp)
+    with zipfile.ZipFile(tmp, "a") as zf:
+        zf.writestr("repbench_policy.json", json.dumps({"algorithm": algo}))
+    os.replace(tmp, path)
+    return path
+
+
+def load_model(path: str | os.PathLike[str], device: str = "cpu") -> Any:
+    """Load an SB3 model written by :func:`save_policy`."""
+    import stable_baselines3 as sb3
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"policy file {path} does not exist; train the full-state agent again")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            algo = json.loads(zf.read("repbench_policy.json"))["algorithm"]
+    except (zipfile.BadZipFile, KeyError, OSError, ValueError) as exc:
+        raise DataError(f"policy file {path} is damaged or not a repbench policy ({exc}); "
+                        "train it again") from None
+    if algo not in _ALGORITHMS:
+        raise DataError(f"policy file {path} holds unknown algorithm {algo!r}")
+    from repbench.rl.agents import resolve_device
+
+    return getattr(sb3, algo).load(path, device=resolve_device(device))
+
+
+def load_policy(path: str | os.PathLike[str], task: Task, encoder: Encoder,
+                device: str = "cpu") -> EncodedPolicy:
+    """A :data:`repbench.task.Policy` from a saved model and the (fitted) encoder it used."""
+    return EncodedPolicy(load_model(path, device=device), task, encoder)
+
+
+def default_oracle(task: Task, dataset: Dataset | None = None, seed: int = 0) -> Encoder:
+    """The registered ``oracle`` encoder, fitted on ``dataset`` (or a tiny random one)."""
+    from repbench.registry import encoders
+
+    cls = encoders.get("oracle")
+    oracle = cls()
+    if dataset is None:
+        dataset = task.collect("random", n_episodes=2, steps_per_episode=5, seed=seed,
+                               progress=False)
+    return oracle.fit(dataset)
+
+
+def train_full_state_agent(task: Task, *, train_steps: int, seed: int,
+                           encoder: Encoder | None = None, dataset: Dataset | None = None,
+                           eval_episodes: int = 10, curve_points: int = 5,
+                           progress: bool = True, **agent_params: Any
+                           ) -> tuple[EncodedPolicy, AgentResult]:
+    """Train SAC on the oracle encoder (full state z° ⊕ robot state).
+
+    Args:
+        task: the task.
+        train_steps: environment steps.
+        seed: training seed.
+        encoder: a fitted full-state encoder; default: the registered ``oracle`` fitted on
+            ``dataset`` (the task's random dataset) or a tiny random dataset.
+        eval_episodes, curve_points, progress: as in :meth:`repbench.Agent.train`.
+        agent_params: :class:`repbench.rl.agents.SACAgent` keyword arguments.
+
+    Returns:
+        The policy (``policy.model`` is the SB3 model; save it with :func:`save_policy`) and
+        the training result.
+    """
+    from repbench.rl.agents import SACAgent
+
+    if encoder is None:
+        encoder = default_oracle(task, dataset, seed)
+    agent = SACAgent(**agent_params)
+    model, result = agent.train_model(task, encoder, train_steps=train_steps, seed=seed,
+                                      eval_episodes=eval_episodes, curve_points=curve_points,
+                                      progress=progress)
+    result.extras["role"] = "full_state"
+    return EncodedPolicy(model, task, encoder), result
+
+
+def collect_on_policy(task: Task, policy: Any, *, n_episodes: int, steps_per_episode: int,
+                      seed: int, progress: bool = True) -> Dataset:
+    """The ``on_policy`` dataset: ``task.collect("on_policy", policy=policy, ...)``."""
+    if not callable(policy):
+        raise ConfigError(f"collect_on_policy needs a callable policy, got {type(policy)!r}")
+    ds = task.collect("on_policy", n_episodes=n_episodes, steps_per_episode=steps_per_episode,
+                      seed=seed, policy=policy, progress=progress)
+    ds.metadata.setdefault("policy", "full_state_sac")
+    return ds

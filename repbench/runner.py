@@ -1,0 +1,67 @@
+"""``repbench run`` and ``repbench leaderboard``: plan a suite, run what is missing, write the
+leaderboards."""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from repbench.executors import RunReport, make_executor, run_stages
+from repbench.leaderboard import Results, collect_results, write_leaderboards
+from repbench.plan import build_plan
+from repbench.store import Store
+from repbench.suite import load_suite
+
+
+@dataclass
+class RunResult:
+    out_dir: Path
+    report: RunReport
+    results: Results
+    seconds: float
+
+
+def default_out_dir(suite_name: str) -> Path:
+    return Path("leaderboards") / suite_name
+
+
+def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | Path | None = None,
+              executor: str = "local", workers: int | None = None,
+              ray_address: str | None = None, progress: bool = True) -> RunResult:
+    """Run every missing stage of ``suite`` and write its leaderboards.
+
+    Raises :class:`repbench.errors.RepbenchError` for a bad suite/plugin/parameter before any
+    work starts. Stages that fail are reported; the leaderboards show what finished.
+    """
+    start = time.time()
+    s = load_suite(suite)
+    plan = build_plan(s)
+    st = Store(store)
+    stages = plan.stages()
+    n_workers = workers or min(os.cpu_count() or 1, 8)
+    ex = make_executor(executor, str(st.root), n_workers, ray_address)
+    print(f"suite {s.name}: {len(stages)} stages ({len(s.tasks)} tasks × {len(s.encoders)} "
+          f"encoders × {len(s.metrics)} metrics, {len(s.agents)} agents × {len(s.seeds)} seeds); "
+          f"store {st.root}; executor {executor} ({ex.capacity} workers)", flush=True)
+    report = run_stages(stages, st, ex, progress=progress)
+    print(f"stages: {report.summary()}", flush=True)
+    out_dir = Path(out) if out is not None else default_out_dir(s.name)
+    results = collect_results(plan, st)
+    write_leaderboards(results, out_dir)
+    if report.failed:
+        print("failed stages (the leaderboard leaves them out):", flush=True)
+        for i, err in report.failed.items():
+            print(f"  {report.labels[i]}: {err}", flush=True)
+    return RunResult(out_dir, report, results, time.time() - start)
+
+
+def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
+                         out: str | Path | None = None) -> Path:
+    """Write the leaderboards of ``suite`` from what the store holds; computes nothing."""
+    s = load_suite(suite)
+    plan = build_plan(s)
+    results = collect_results(plan, Store(store))
+    out_dir = Path(out) if out is not None else default_out_dir(s.name)
+    return write_leaderboards(results, out_dir)

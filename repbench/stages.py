@@ -1,0 +1,224 @@
+"""The stages of a suite, each a pure function of its config and its inputs' artifacts.
+
+A :class:`StageSpec` names a stage kind, its JSON config and the keys of the artifacts it reads.
+:func:`execute` runs one spec inside any worker (a local process, a Ray task) and writes its
+artifact to the store; it is a no-op when the artifact already exists, so re-running a plan
+redoes nothing that finished.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from repbench.dataset import Dataset
+from repbench.errors import ConfigError
+from repbench.registry import agents, encoders, metrics, tasks
+from repbench.store import Store, stage_key
+
+DATASET, FULL_STATE, ENCODER, LATENTS, METRIC, RL, DIAGNOSTICS = (
+    "dataset", "full_state_agent", "encoder", "latents", "metric", "rl", "diagnostics",
+)
+
+
+@dataclass(frozen=True)
+class StageSpec:
+    """One stage to run: ``kind``, its ``config``, and named input stage keys."""
+
+    kind: str
+    config: Mapping[str, Any]
+    inputs: Mapping[str, tuple[str, str]] = field(default_factory=dict)  # name → (kind, key)
+    label: str = ""
+
+    @property
+    def key(self) -> str:
+        return stage_key(self.kind, self.config, sorted(k for _, k in self.inputs.values()))
+
+    @property
+    def deps(self) -> list[tuple[str, str]]:
+        return list(self.inputs.values())
+
+
+def code_version(obj: Any) -> str:
+    """Short hash of the source file defining ``obj``: editing a plugin invalidates its results."""
+    try:
+        src = inspect.getsourcefile(obj if inspect.isclass(obj) or inspect.isfunction(obj)
+                                    else type(obj))
+        if getattr(obj, "fn", None) is not None:  # repbench.Metric wraps a function
+            src = inspect.getsourcefile(obj.fn)
+    except TypeError:
+        src = None
+    if not src or not Path(src).is_file():
+        return "unknown"
+    return hashlib.sha256(Path(src).read_bytes()).hexdigest()[:12]
+
+
+def accepted_kwargs(factory: Callable[..., Any], params: Mapping[str, Any]) -> dict[str, Any]:
+    """The subset of ``params`` that ``factory``'s signature accepts."""
+    sig = inspect.signature(factory)
+    if any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
+        return dict(params)
+    return {k: v for k, v in params.items() if k in sig.parameters}
+
+
+def check_kwargs(owner: str, factory: Callable[..., Any], params: Mapping[str, Any]) -> None:
+    """Raise ConfigError if ``params`` has keys ``factory`` does not accept."""
+    unknown = set(params) - set(accepted_kwargs(factory, params))
+    if unknown:
+        valid = [p for p in inspect.signature(factory).parameters if p not in ("self",)]
+        raise ConfigError(f"{owner}: unknown parameter(s) {sorted(unknown)}; valid: {valid}")
+
+
+# -- stage implementations ---------------------------------------------------------------------
+
+def _load_dataset(store: Store, key: str) -> Dataset:
+    art = store.get(DATASET, key)
+    if art is None:
+        raise RuntimeError(f"input dataset {key} is missing from the store")
+    return Dataset.load(art.file("dataset.npz"))
+
+
+def _make_task(cfg: Mapping[str, Any]) -> Any:
+    return tasks.get(cfg["task"])(**cfg.get("task_params", {}))
+
+
+def _run_dataset(spec: StageSpec, store: Store, w: Any) -> None:
+    cfg = spec.config
+    task = _make_task(cfg)
+    policy = None
+    if cfg["kind"] == "on_policy":
+        from repbench.rl.full_state import load_full_state_policy
+
+        art = store.get(FULL_STATE, spec.inputs["policy"][1])
+        assert art is not None
+        policy = load_full_state_policy(art.path, task)
+    ds = task.collect(cfg["kind"], n_episodes=cfg["n_episodes"],
+                      steps_per_episode=cfg["steps_per_episode"], seed=cfg["seed"],
+                      policy=policy, progress=False)
+    ds.save(w.file("dataset.npz"))
+    w.write_json({"n_steps": len(ds), "n_episodes": ds.n_episodes,
+                  "success_rate": float(ds.success.mean()), "metadata": ds.metadata})
+
+
+def _run_full_state(spec: StageSpec, store: Store, w: Any) -> None:
+    from repbench.rl.full_state import train_full_state_agent
+
+    cfg = spec.config
+    task = _make_task(cfg)
+    dataset = _load_dataset(store, spec.inputs["dataset"][1])
+    result = train_full_state_agent(task, dataset, out_dir=w.path, train_steps=cfg["train_steps"],
+                                    seed=cfg["seed"], eval_episodes=cfg["eval_episodes"],
+                                    agent_params=cfg["agent_params"])
+    w.write_json(result.to_dict())
+
+
+def _run_encoder(spec: StageSpec, store: Store, w: Any) -> None:
+    cfg = spec.config
+    cls = encoders.get(cfg["encoder"])
+    dataset = _load_dataset(store, spec.inputs["dataset"][1])
+    start = time.time()
+    enc = cls(**cfg["params"]).fit(dataset)
+    enc.save(w.file("encoder.pt"))
+    w.write_json({"latent_dim": int(enc.latent_dim), "fit_time_s": time.time() - start,
+                  "params": enc.get_params()})
+    figure = getattr(enc, "save_reconstruction_figure", None)
+    if callable(figure):
+        try:
+            figure(dataset, w.file("reconstructions.png"))
+        except Exception as exc:  # a figure must never lose a trained encoder
+            w.extra_meta["figure_error"] = str(exc)
+
+
+def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
+    from repbench.encoder import Encoder
+
+    enc_art = store.get(ENCODER, spec.inputs["encoder"][1])
+    assert enc_art is not None
+    enc = Encoder.load(enc_art.file("encoder.pt"))
+    parts = [(name, _load_dataset(store, key)) for name, (kind, key) in sorted(spec.inputs.items())
+             if kind == DATASET]
+    data = Dataset.concatenate([d for _, d in parts])
+    source = np.concatenate([np.full(len(d), i) for i, (_, d) in enumerate(parts)])
+    batch = 256
+    z = np.concatenate([enc.encode(data.obs(slice(i, i + batch)))
+                        for i in range(0, len(data), batch)])
+    np.savez_compressed(w.file("latents.npz"), z=z.astype(np.float32), z_true=data.true_state,
+                        episode=data.episode, step=data.step, source=source)
+    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": z.shape[1]})
+
+
+def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
+    cfg = spec.config
+    art = store.get(LATENTS, spec.inputs["latents"][1])
+    assert art is not None
+    with np.load(art.file("latents.npz")) as f:
+        z, z_true, episode = f["z"], f["z_true"], f["episode"]
+    fn = metrics.get(cfg["metric"])
+    start = time.time()
+    result = fn(z, z_true, episode, np.random.default_rng(cfg["seed"]), **cfg["params"])
+    out = result.to_dict()
+    out["time_s"] = time.time() - start
+    w.write_json(out)
+
+
+def _run_rl(spec: StageSpec, store: Store, w: Any) -> None:
+    from repbench.encoder import Encoder
+
+    cfg = spec.config
+    task = _make_task(cfg)
+    enc_art = store.get(ENCODER, spec.inputs["encoder"][1])
+    assert enc_art is not None
+    encoder = Encoder.load(enc_art.file("encoder.pt"))
+    agent = agents.get(cfg["agent"])(**cfg["agent_params"])
+    result = agent.train(task, encoder, train_steps=cfg["train_steps"], seed=cfg["seed"],
+                         eval_episodes=cfg["eval_episodes"], curve_points=cfg["curve_points"],
+                         progress=False)
+    w.write_json(result.to_dict())
+
+
+def _run_diagnostics(spec: StageSpec, store: Store, w: Any) -> None:
+    from repbench.metrics.diagnostics import true_state_differences
+
+    out = {}
+    for name, (_, key) in sorted(spec.inputs.items()):
+        ds = _load_dataset(store, key)
+        out[name] = true_state_differences(ds.true_state, ds.episode)
+    w.write_json(out)
+
+
+_IMPLEMENTATIONS: dict[str, Callable[[StageSpec, Store, Any], None]] = {
+    DATASET: _run_dataset, FULL_STATE: _run_full_state, ENCODER: _run_encoder,
+    LATENTS: _run_latents, METRIC: _run_metric, RL: _run_rl, DIAGNOSTICS: _run_diagnostics,
+}
+
+
+def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) -> dict[str, Any]:
+    """Run ``spec`` unless its artifact exists; return a small status record."""
+    if torch_threads is not None:
+        import torch
+
+        torch.set_num_threads(torch_threads)
+    store = Store(store_root)
+    key = spec.key
+    start = time.time()
+    if store.get(spec.kind, key) is not None:
+        return {"key": key, "status": "cached", "seconds": 0.0}
+    with store.write(spec.kind, key, config=spec.config,
+                     inputs=[k for _, k in spec.inputs.values()],
+                     seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
+        writer.extra_meta["label"] = spec.label
+        _IMPLEMENTATIONS[spec.kind](spec, store, writer)
+    return {"key": key, "status": "done", "seconds": time.time() - start}
+
+
+def jsonable_config(cfg: Mapping[str, Any]) -> dict[str, Any]:
+    """Round-trip through JSON so configs hash identically wherever they were built."""
+    return json.loads(json.dumps(cfg, sort_keys=True))
