@@ -83,7 +83,7 @@ class Encoder(abc.ABC):
         ]
 
     def get_params(self) -> dict[str, Any]:
-        """Constructor arguments, enough to rebuild an unfitted copy: ``type(e)(**e.get_params())``."""
+        """Constructor arguments: ``type(e)(**e.get_params())`` rebuilds an unfitted copy."""
         return {name: getattr(self, name) for name in self._param_names()}
 
     def set_params(self: E, **params: Any) -> E:

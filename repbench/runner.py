@@ -37,8 +37,8 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     """
     start = time.time()
     s = load_suite(suite)
-    plan = build_plan(s)
     st = Store(store)
+    plan = build_plan(s)
     stages = plan.stages()
     n_workers = workers or min(os.cpu_count() or 1, 8)
     ex = make_executor(executor, str(st.root), n_workers, ray_address)
@@ -61,7 +61,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing."""
     s = load_suite(suite)
-    plan = build_plan(s)
-    results = collect_results(plan, Store(store))
+    st = Store(store)
+    results = collect_results(build_plan(s), st)
     out_dir = Path(out) if out is not None else default_out_dir(s.name)
     return write_leaderboards(results, out_dir)

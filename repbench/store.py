@@ -79,10 +79,8 @@ def library_versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
     for dist in ("repbench", "numpy", "torch", "scipy", "scikit-learn", "pandas", "mujoco",
                  "robosuite", "gymnasium", "stable-baselines3"):
-        try:
+        with contextlib.suppress(PackageNotFoundError):
             out[dist] = version(dist)
-        except PackageNotFoundError:
-            pass
     return out
 
 
@@ -238,10 +236,11 @@ class Store:
                 os.fsync(f.fileno())
             final = self.artifact_dir(stage, key)
             final.parent.mkdir(parents=True, exist_ok=True)
-            if final.exists():  # another worker finished first, or a corrupt leftover
-                if self.get(stage, key) is not None:
-                    shutil.rmtree(tmp, ignore_errors=True)
-                    return
+            # another worker finished first (keep its copy), or a corrupt leftover (get()
+            # quarantines it, then the rename below succeeds)
+            if final.exists() and self.get(stage, key) is not None:
+                shutil.rmtree(tmp, ignore_errors=True)
+                return
             os.rename(tmp, final)
             _fsync_dir(final.parent)
         finally:
