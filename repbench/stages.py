@@ -95,11 +95,12 @@ def _run_dataset(spec: StageSpec, store: Store, w: Any) -> None:
     task = _make_task(cfg)
     policy = None
     if cfg["kind"] == "on_policy":
-        from repbench.rl.full_state import load_full_state_policy
+        from repbench.encoder import Encoder
+        from repbench.rl.full_state import load_policy
 
         art = store.get(FULL_STATE, spec.inputs["policy"][1])
         assert art is not None
-        policy = load_full_state_policy(art.path, task)
+        policy = load_policy(art.file("model.zip"), task, Encoder.load(art.file("oracle.pt")))
     ds = task.collect(cfg["kind"], n_episodes=cfg["n_episodes"],
                       steps_per_episode=cfg["steps_per_episode"], seed=cfg["seed"],
                       policy=policy, progress=False)
@@ -109,14 +110,16 @@ def _run_dataset(spec: StageSpec, store: Store, w: Any) -> None:
 
 
 def _run_full_state(spec: StageSpec, store: Store, w: Any) -> None:
-    from repbench.rl.full_state import train_full_state_agent
+    from repbench.rl.full_state import save_policy, train_full_state_agent
 
     cfg = spec.config
     task = _make_task(cfg)
     dataset = _load_dataset(store, spec.inputs["dataset"][1])
-    result = train_full_state_agent(task, dataset, out_dir=w.path, train_steps=cfg["train_steps"],
-                                    seed=cfg["seed"], eval_episodes=cfg["eval_episodes"],
-                                    agent_params=cfg["agent_params"])
+    policy, result = train_full_state_agent(
+        task, train_steps=cfg["train_steps"], seed=cfg["seed"], dataset=dataset,
+        eval_episodes=cfg["eval_episodes"], progress=False, **cfg["agent_params"])
+    save_policy(policy.model, w.file("model.zip"))
+    policy.encoder.save(w.file("oracle.pt"))
     w.write_json(result.to_dict())
 
 
