@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, ClassVar
 
 import numpy as np
@@ -45,6 +46,22 @@ def resolve_device(device: str) -> str:
 
         return "cuda" if torch.cuda.is_available() else "cpu"
     return device
+
+
+@contextmanager
+def torch_threads(n: int | None) -> Iterator[None]:
+    """Set torch's intra-op thread count inside the block and restore it afterwards."""
+    if n is None:
+        yield
+        return
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def evaluate(model: Any, env: Any, seeds: Sequence[int], *, deterministic: bool = True
@@ -127,7 +144,7 @@ class SB3Agent(Agent):
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  learning_starts: int = 1000, gamma: float = 0.99, gradient_steps: int = -1,
                  curve_episodes: int = 5, device: str = "auto", n_envs: int = 1,
-                 progress: bool = True) -> None:
+                 torch_threads: int | None = 1, progress: bool = True) -> None:
         self.hidden_sizes = hidden_sizes
         self.learning_rate = learning_rate
         self.buffer_size = buffer_size
@@ -139,6 +156,7 @@ class SB3Agent(Agent):
         self.curve_episodes = curve_episodes
         self.device = device
         self.n_envs = n_envs
+        self.torch_threads = torch_threads
         self.progress = progress
 
     # -- parameters ----------------------------------------------------------------------------
@@ -161,6 +179,9 @@ class SB3Agent(Agent):
             raise self._fail("hidden_sizes", "must be a non-empty list of positive ints")
         if not (isinstance(self.learning_rate, (int, float)) and self.learning_rate > 0):
             raise self._fail("learning_rate", "must be > 0")
+        if self.torch_threads is not None and not (
+                isinstance(self.torch_threads, int) and self.torch_threads > 0):
+            raise self._fail("torch_threads", "must be a positive int or None")
         for f in ("buffer_size", "batch_size", "n_envs", "curve_episodes"):
             if not (isinstance(getattr(self, f), int) and getattr(self, f) > 0):
                 raise self._fail(f, "must be a positive int")
@@ -241,6 +262,14 @@ class SB3Agent(Agent):
                     eval_episodes: int, curve_points: int = 5, progress: bool = True
                     ) -> tuple[Any, AgentResult]:
         """Like :meth:`train`, also returning the trained SB3 model."""
+        with torch_threads(self.torch_threads):
+            return self._train_model(task, encoder, train_steps=train_steps, seed=seed,
+                                     eval_episodes=eval_episodes, curve_points=curve_points,
+                                     progress=progress)
+
+    def _train_model(self, task: Task, encoder: Encoder, *, train_steps: int, seed: int,
+                     eval_episodes: int, curve_points: int, progress: bool
+                     ) -> tuple[Any, AgentResult]:
         import torch
 
         if not isinstance(train_steps, int) or train_steps <= 0:
@@ -330,6 +359,9 @@ class SACAgent(SB3Agent):
         curve_episodes: fixed episodes per learning-curve point.
         device: ``"auto"`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
         n_envs: training environments; > 1 runs each in its own process (multi-core).
+        torch_threads: torch intra-op threads while training (restored afterwards); 1 is
+            fastest for these small MLPs on CPU (parallelise over seeds instead); ``None``
+            leaves torch's setting alone.
         progress: show a progress bar.
     """
 
@@ -340,12 +372,14 @@ class SACAgent(SB3Agent):
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  ent_coef: str | float = "auto", learning_starts: int = 1000,
                  gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
-                 device: str = "auto", n_envs: int = 1, progress: bool = True) -> None:
+                 device: str = "auto", n_envs: int = 1, torch_threads: int | None = 1,
+                 progress: bool = True) -> None:
         super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
                          buffer_size=buffer_size, batch_size=batch_size, tau=tau,
                          learning_starts=learning_starts, gamma=gamma,
                          gradient_steps=gradient_steps, curve_episodes=curve_episodes,
-                         device=device, n_envs=n_envs, progress=progress)
+                         device=device, n_envs=n_envs, torch_threads=torch_threads,
+                         progress=progress)
         self.ent_coef = ent_coef
 
     def validate(self, train_steps: int) -> None:
@@ -376,12 +410,14 @@ class DDPGAgent(SB3Agent):
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  action_noise: float = 0.25, learning_starts: int = 1000,
                  gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
-                 device: str = "auto", n_envs: int = 1, progress: bool = True) -> None:
+                 device: str = "auto", n_envs: int = 1, torch_threads: int | None = 1,
+                 progress: bool = True) -> None:
         super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
                          buffer_size=buffer_size, batch_size=batch_size, tau=tau,
                          learning_starts=learning_starts, gamma=gamma,
                          gradient_steps=gradient_steps, curve_episodes=curve_episodes,
-                         device=device, n_envs=n_envs, progress=progress)
+                         device=device, n_envs=n_envs, torch_threads=torch_threads,
+                         progress=progress)
         self.action_noise = action_noise
 
     def validate(self, train_steps: int) -> None:

@@ -108,7 +108,7 @@ def _render(rel: np.ndarray, pos: np.ndarray, size: int) -> np.ndarray:
     cy = (centre - rel[:, 1] * _PIXELS_PER_UNIT * scale).astype(np.float32)
     d2 = (ax[None, None, :] - cx[:, None, None]) ** 2 + (ax[None, :, None] - cy[:, None, None]) ** 2
     r = _HOLE_RADIUS * scale
-    hole = 1.0 / (1.0 + np.exp((np.sqrt(d2) - r) * 1.5))  # soft-edged disk, [N, H, W]
+    hole = 1.0 / (1.0 + np.exp(np.clip((np.sqrt(d2) - r) * 1.5, -30, 30)))  # soft disk [N,H,W]
     # Floor: a faint stripe pattern that slides with the end effector (parallax cue).
     stripes = 0.5 + 0.5 * np.sin(
         (ax[None, None, :] / scale + pos[:, 0, None, None] * 40.0) * 0.25

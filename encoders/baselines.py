@@ -1,0 +1,173 @@
+"""Baseline encoders: the true state itself, an untrained VAE encoder, PCA, and proprioception.
+
+* ``oracle`` — z = z°, the privileged true state (an upper reference for every metric);
+* ``random`` — the VAE's encoder architecture with its seeded initial weights, never trained;
+* ``pca`` — PCA of the flattened, standardized observation (downsampled image ⊕ ft ⊕ proprio);
+* ``proprio_only`` — the standardized robot state, no vision or force.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset
+from repbench.encoder import Encoder
+from repbench.errors import ConfigError, DataError
+from repbench_encoders.vae import MultimodalVAE
+
+__all__ = ["OracleEncoder", "PCAEncoder", "ProprioOnlyEncoder", "RandomEncoder"]
+
+
+def _safe_std(x: np.ndarray) -> np.ndarray:
+    s = x.std(axis=0)
+    return np.where(s > 1e-8, s, 1.0)
+
+
+def _check_width(name: str, modality: str, arr: np.ndarray, width: int) -> None:
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise DataError(f"{name}: modality {modality!r} must have shape [N, {width}] as at fit "
+                        f"time, got {list(arr.shape)}")
+
+
+class OracleEncoder(Encoder):
+    """The true state z° itself (float32); its latent size is the task's state size."""
+
+    required_modalities = (TRUE_STATE,)
+
+    def __init__(self) -> None:
+        pass
+
+    def fit(self, dataset: Dataset) -> OracleEncoder:
+        """Record the true-state size."""
+        self.state_dim_ = int(dataset.true_state.shape[1])
+        return self
+
+    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
+        """Return ``observations["true_state"]`` as float32 [N, S]."""
+        self.check_is_fitted()
+        z = self.check_observations(observations)[TRUE_STATE]
+        _check_width(type(self).__name__, TRUE_STATE, z, self.state_dim_)
+        return np.array(z, dtype=np.float32, copy=True)
+
+    @property
+    def latent_dim(self) -> int:
+        """S, known after ``fit``."""
+        self.check_is_fitted()
+        return self.state_dim_
+
+
+class ProprioOnlyEncoder(Encoder):
+    """Robot state only (standardized proprioception), no vision or force."""
+
+    required_modalities = (PROPRIO,)
+
+    def __init__(self) -> None:
+        pass
+
+    def fit(self, dataset: Dataset) -> ProprioOnlyEncoder:
+        """Store the proprioception mean and standard deviation."""
+        p = dataset.observations[PROPRIO].astype(np.float64)
+        self.mean_ = p.mean(axis=0)
+        self.std_ = _safe_std(p)
+        return self
+
+    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
+        """(proprio − mean) / std as float32 [N, P]."""
+        self.check_is_fitted()
+        p = self.check_observations(observations)[PROPRIO]
+        _check_width(type(self).__name__, PROPRIO, p, self.mean_.shape[0])
+        return ((p - self.mean_) / self.std_).astype(np.float32)
+
+    @property
+    def latent_dim(self) -> int:
+        """P, known after ``fit``."""
+        self.check_is_fitted()
+        return int(self.mean_.shape[0])
+
+
+class RandomEncoder(MultimodalVAE):
+    """The VAE's encoder architecture with its seeded initial weights, never trained.
+
+    Fitting only computes the input normalization statistics; ``encode`` returns μ_z.
+    """
+
+    def __init__(self, latent_dim: int = 16, seed: int = 0, device: str = "auto") -> None:
+        super().__init__(latent_dim=latent_dim, epochs=0, seed=seed, device=device,
+                         progress=False)
+
+
+class PCAEncoder(Encoder):
+    """PCA (scikit-learn) of the flattened observation: image average-pooled to
+    ``image_size`` × ``image_size``, ⊕ ft ⊕ proprio, each feature standardized.
+
+    Args:
+        latent_dim: number of principal components kept.
+        image_size: side of the downsampled image (must divide the image side).
+        seed: seed of the randomized SVD solver (used on large inputs).
+    """
+
+    latent_dim: int = 16  # a hyperparameter here (shadows the base class's abstract property)
+
+    def __init__(self, latent_dim: int = 16, image_size: int = 16, seed: int = 0) -> None:
+        self.latent_dim = latent_dim
+        self.image_size = image_size
+        self.seed = seed
+
+    def _features(self, observations: Mapping[str, Any]) -> np.ndarray:
+        batch = self.check_observations(observations)
+        img = batch[IMAGE]
+        name = type(self).__name__
+        if img.ndim != 4 or img.shape[3] != 3 or img.shape[1] != img.shape[2]:
+            raise DataError(f"{name}: images must be [N, S, S, 3], got {list(img.shape)}")
+        side = img.shape[1]
+        if side % self.image_size:
+            raise ConfigError(f"{name}: image_size={self.image_size} must divide the image side "
+                              f"{side}")
+        k = side // self.image_size
+        n = img.shape[0]
+        small = img.reshape(n, self.image_size, k, self.image_size, k, 3).mean(axis=(2, 4),
+                                                                               dtype=np.float64)
+        return np.concatenate([small.reshape(n, -1), np.asarray(batch[FT], np.float64),
+                               np.asarray(batch[PROPRIO], np.float64)], axis=1)
+
+    def fit(self, dataset: Dataset) -> PCAEncoder:
+        """Standardize the features and fit ``sklearn.decomposition.PCA``."""
+        from sklearn.decomposition import PCA
+
+        name = type(self).__name__
+        if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
+            raise ConfigError(f"{name}: latent_dim must be a positive integer, "
+                              f"got {self.latent_dim!r}")
+        if not isinstance(self.image_size, (int, np.integer)) or self.image_size < 1:
+            raise ConfigError(f"{name}: image_size must be a positive integer, "
+                              f"got {self.image_size!r}")
+        x = self._features(dataset.obs(with_true_state=False))
+        if self.latent_dim > min(x.shape):
+            raise ConfigError(
+                f"{name}: latent_dim={self.latent_dim} exceeds min(samples, features)="
+                f"{min(x.shape)}; lower latent_dim or use more data"
+            )
+        mean, std = x.mean(axis=0), _safe_std(x)
+        pca = PCA(n_components=int(self.latent_dim), random_state=self.seed)
+        pca.fit((x - mean) / std)
+        self.feature_mean_ = mean
+        self.feature_std_ = std
+        self.components_ = pca.components_.astype(np.float64)
+        self.pca_mean_ = pca.mean_.astype(np.float64)
+        self.explained_variance_ratio_ = pca.explained_variance_ratio_.astype(np.float64)
+        self.n_features_ = int(x.shape[1])
+        return self
+
+    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
+        """Project the standardized features on the principal axes (float32 [N, latent_dim])."""
+        self.check_is_fitted()
+        x = self._features(observations)
+        if x.shape[1] != self.n_features_:
+            raise DataError(f"{type(self).__name__}: observation has {x.shape[1]} features but "
+                            f"the encoder was fitted on {self.n_features_} (other image, ft or "
+                            "proprio size)")
+        x = (x - self.feature_mean_) / self.feature_std_
+        return ((x - self.pca_mean_) @ self.components_.T).astype(np.float32)

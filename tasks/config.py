@@ -1,0 +1,137 @@
+"""Hyperparameters of the peg-in-hole task and their validation (one-line ``ConfigError``s)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from repbench.errors import ConfigError
+
+#: Table half-size (robosuite's default table arena is 0.8 m x 0.8 m, centred at the origin).
+TABLE_HALF = 0.4
+#: Below this clearance MuJoCo's soft contacts (penetration ~0.3 mm under load) and the OSC
+#: tracking error (~0.3 mm) make the peg jam or pass through walls: the solver cannot resolve it.
+MIN_CLEARANCE = 0.0005
+START_KINDS = ("above", "inserted")
+HOLE_SAMPLING = ("grid", "uniform")
+
+
+@dataclass(frozen=True)
+class PegInHoleConfig:
+    """Every hyperparameter of :class:`~repbench_tasks.peg_in_hole.PegInHoleTask`."""
+
+    horizon: int = 100
+    """Episode length in control steps (20 Hz)."""
+    grid_size: int = 5
+    """Hole positions form a ``grid_size x grid_size`` grid (the paper: 5 x 5 = 25)."""
+    grid_extent: float = 0.16
+    """Side of the square the grid spans (m)."""
+    grid_center: tuple[float, float] = (0.0, 0.0)
+    """Planar centre of the grid on the table (m)."""
+    hole_sampling: str = "grid"
+    """``"grid"``: one of the grid positions per episode; ``"uniform"``: anywhere in the square."""
+    clearance: float = 0.002
+    """Gap between peg and each hole wall when centred (m)."""
+    peg_half_width: float = 0.012
+    """Half the side of the square peg (m)."""
+    peg_length: float = 0.12
+    """Peg length (m)."""
+    hole_depth: float = 0.04
+    """Height of the hole's walls = full insertion depth (m)."""
+    wall_thickness: float = 0.02
+    """Thickness of the hole's walls (m)."""
+    image_size: int = 64
+    """Wrist image side (pixels)."""
+    fast_render: bool = True
+    """Tuned software rendering (no MSAA, no reflections, unseen geometry culled); False uses
+    robosuite's default camera observable (same picture, ~10x slower on CPU)."""
+    camera: bool = True
+    """False: physics only, the ``image`` observation is all zeros (benchmarks, state-based RL)."""
+    start: str = "above"
+    """Default start distribution: ``"above"`` the hole (RL) or ``"inserted"`` (backwards
+    exploration)."""
+    start_offset: float = 0.03
+    """Half-width of the uniform planar offset of an ``"above"`` start (m)."""
+    start_height: tuple[float, float] = (0.02, 0.06)
+    """Range of the peg tip's height above the hole for an ``"above"`` start (m)."""
+    action_scale: float = 0.02
+    """End-effector displacement for an action of 1 (m per step)."""
+    physics_dt: float = 0.005
+    """Physics step (s); the paper used a maximum step of 0.005 s."""
+    ft_cutoff_hz: float = 10.0
+    """Cut-off of the 2nd-order Butterworth low-pass on the wrist force/torque."""
+    success_tolerance: float = 0.01
+    """Inserted "to depth" means within this distance of the bottom (m)."""
+
+    # -- derived -------------------------------------------------------------------------------
+    @property
+    def hole_outer_half(self) -> float:
+        return self.peg_half_width + self.clearance + self.wall_thickness
+
+    def grid_positions(self) -> np.ndarray:
+        """The ``grid_size**2`` planar hole positions, row-major, float64 [G, 2]."""
+        n = self.grid_size
+        offs = np.linspace(-self.grid_extent / 2, self.grid_extent / 2, n) if n > 1 else np.zeros(1)
+        gx, gy = np.meshgrid(offs + self.grid_center[0], offs + self.grid_center[1], indexing="ij")
+        return np.stack([gx.ravel(), gy.ravel()], axis=1)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    # -- validation ----------------------------------------------------------------------------
+    def validate(self) -> PegInHoleConfig:
+        """Raise :class:`ConfigError` (one line, naming the field and the fix) on a bad value."""
+        def bad(name: str, msg: str) -> ConfigError:
+            return ConfigError(f"PegInHole-v0: {name}={getattr(self, name)!r} {msg}")
+
+        if not isinstance(self.horizon, (int, np.integer)) or self.horizon < 1:
+            raise bad("horizon", "must be a positive integer number of steps")
+        if not isinstance(self.grid_size, (int, np.integer)) or not 1 <= self.grid_size <= 50:
+            raise bad("grid_size", "must be an integer in [1, 50] (the paper uses 5)")
+        if not np.isfinite(self.grid_extent) or self.grid_extent < 0:
+            raise bad("grid_extent", "must be a finite length >= 0 in metres")
+        if len(self.grid_center) != 2:
+            raise bad("grid_center", "must be a planar (x, y) position")
+        if self.hole_sampling not in HOLE_SAMPLING:
+            raise bad("hole_sampling", f"must be one of {HOLE_SAMPLING}")
+        if self.start not in START_KINDS:
+            raise bad("start", f"must be one of {START_KINDS}")
+        for name in ("peg_half_width", "peg_length", "hole_depth", "wall_thickness",
+                     "action_scale", "physics_dt", "ft_cutoff_hz", "success_tolerance"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise bad(name, "must be a positive finite number")
+        if not np.isfinite(self.clearance) or self.clearance < MIN_CLEARANCE:
+            raise bad("clearance", f"is below {MIN_CLEARANCE} m, which MuJoCo's soft contacts and "
+                                   "the OSC tracking error cannot resolve; use a larger clearance")
+        if self.clearance > self.peg_half_width:
+            raise bad("clearance", f"exceeds the peg half-width {self.peg_half_width} m: that is "
+                                   "no longer a fit; use a smaller clearance")
+        reach = (max(abs(self.grid_center[0]), abs(self.grid_center[1])) + self.grid_extent / 2
+                 + self.hole_outer_half)
+        if reach > TABLE_HALF:
+            raise ConfigError(
+                f"PegInHole-v0: grid_center={tuple(self.grid_center)!r}, "
+                f"grid_extent={self.grid_extent!r} puts the hole off the table (needs "
+                f"|centre| + extent/2 + {self.hole_outer_half:.3f} <= {TABLE_HALF} m); "
+                "shrink grid_extent or move grid_center")
+        if self.peg_length - 0.02 < self.hole_depth + 0.03:
+            raise bad("peg_length", f"must reach {self.hole_depth + 0.05:.3f} m (hole depth + "
+                                    "5 cm) so the fingers clear the walls when inserted")
+        if not isinstance(self.image_size, (int, np.integer)) or not 8 <= self.image_size <= 512:
+            raise bad("image_size", "must be an integer in [8, 512] (the paper uses 64)")
+        lo, hi = self.start_height
+        if not 0 <= lo <= hi <= 0.25:
+            raise bad("start_height", "must be (low, high) with 0 <= low <= high <= 0.25 m")
+        if not 0 <= self.start_offset <= 0.1:
+            raise bad("start_offset", "must be in [0, 0.1] m")
+        if self.success_tolerance >= self.hole_depth:
+            raise bad("success_tolerance", "must be smaller than hole_depth")
+        steps = (1.0 / 20.0) / self.physics_dt
+        if abs(steps - round(steps)) > 1e-6 or self.physics_dt > 0.01:
+            raise bad("physics_dt", "must divide the 0.05 s control period and be <= 0.01 s")
+        if self.ft_cutoff_hz >= 0.5 / self.physics_dt:
+            raise bad("ft_cutoff_hz", f"must be below the Nyquist rate {0.5 / self.physics_dt} Hz")
+        return self

@@ -1,0 +1,128 @@
+"""The peg-in-hole task of the paper (robosuite 1.5.2, Panda, wrist camera + force/torque).
+
+``PegInHoleTask`` is the repbench plugin (entry point ``PegInHole-v0``); importing this module
+also registers the gymnasium id ``repbench/PegInHole-v0``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from repbench_tasks.config import PegInHoleConfig
+
+from repbench.dataset import Dataset
+from repbench.errors import ConfigError
+from repbench.task import Policy, Task
+
+GYM_ID = "repbench/PegInHole-v0"
+
+
+class PegInHoleTask(Task):
+    """Peg-in-hole with a 5x5 grid of hole positions (the paper's §IV task).
+
+    Every argument is a field of :class:`~repbench_tasks.config.PegInHoleConfig` (see there);
+    the constructor validates and stores them, nothing else.
+    """
+
+    task_id: ClassVar[str] = "PegInHole-v0"
+
+    def __init__(self, horizon: int = 100, grid_size: int = 5, grid_extent: float = 0.16,
+                 grid_center: tuple[float, float] = (0.0, 0.0), hole_sampling: str = "grid",
+                 clearance: float = 0.002, image_size: int = 64, fast_render: bool = True,
+                 camera: bool = True, start: str = "above", start_offset: float = 0.03,
+                 action_scale: float = 0.02, physics_dt: float = 0.005,
+                 ft_cutoff_hz: float = 10.0) -> None:
+        self.horizon = horizon
+        self.grid_size = grid_size
+        self.grid_extent = grid_extent
+        self.grid_center = tuple(grid_center)
+        self.hole_sampling = hole_sampling
+        self.clearance = clearance
+        self.image_size = image_size
+        self.fast_render = fast_render
+        self.camera = camera
+        self.start = start
+        self.start_offset = start_offset
+        self.action_scale = action_scale
+        self.physics_dt = physics_dt
+        self.ft_cutoff_hz = ft_cutoff_hz
+        self.config()  # validate now: a bad value fails at construction
+
+    def config(self, **overrides: Any) -> PegInHoleConfig:
+        """The validated configuration, with ``overrides`` applied."""
+        params = {**self.get_params(), **overrides}
+        fields = {f.name for f in dataclasses.fields(PegInHoleConfig)}
+        unknown = sorted(set(params) - fields)
+        if unknown:
+            raise ConfigError(f"PegInHole-v0: unknown parameter(s) {unknown}; known: "
+                              f"{sorted(fields)}")
+        if "grid_center" in params:
+            params["grid_center"] = tuple(params["grid_center"])
+        return PegInHoleConfig(**params).validate()
+
+    def make_env(self, seed: int | None = None, **overrides: Any) -> gym.Env:
+        """A fresh :class:`~repbench_tasks.env.PegInHoleEnv` (≈1 s to build).
+
+        ``overrides`` replace constructor parameters (e.g. ``camera=False`` for physics only);
+        ``render_mode`` is passed to the environment. ``seed`` seeds the first ``reset``.
+        """
+        from repbench_tasks.env import PegInHoleEnv
+
+        render_mode = overrides.pop("render_mode", None)
+        env = PegInHoleEnv(self.config(**overrides), render_mode=render_mode)
+        if seed is not None:
+            env.reset(seed=seed)
+        return env
+
+    def true_state(self, env: Any) -> np.ndarray:
+        """z° of ``env`` now: arm joint positions and velocities, hole planar position."""
+        return env.unwrapped.true_state()
+
+    def collect(self, kind: str, *, n_episodes: int, steps_per_episode: int, seed: int,
+                policy: Policy | None = None, progress: bool = True) -> Dataset:
+        """Collect ``random`` (backwards exploration from the inserted peg, hole positions
+        cycling through the grid by episode) or ``on_policy`` data; see
+        :func:`repbench_tasks.collection.collect`. The contact share is in the metadata."""
+        import time
+
+        from repbench_tasks.collection import collect
+
+        from repbench.store import library_versions
+
+        env = self.make_env(horizon=max(steps_per_episode, 1))
+        t0 = time.perf_counter()
+        try:
+            dataset, stats = collect(env.unwrapped, kind, n_episodes=n_episodes,
+                                     steps_per_episode=steps_per_episode, seed=seed,
+                                     policy=policy, progress=progress)
+        finally:
+            env.close()
+        dataset.metadata = {
+            "task": self.task_id, "task_version": 0, "params": _jsonable(self.get_params()),
+            "kind": kind, "seed": int(seed), "n_episodes": int(n_episodes),
+            "steps_per_episode": int(steps_per_episode),
+            "library_versions": library_versions(),
+            "collection_seconds": round(time.perf_counter() - t0, 3), **stats,
+        }
+        return dataset
+
+
+def _jsonable(params: dict[str, Any]) -> dict[str, Any]:
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()}
+
+
+def _make_gym_env(**kwargs: Any) -> gym.Env:
+    return PegInHoleTask(**{k: v for k, v in kwargs.items() if k != "render_mode"}).make_env(
+        render_mode=kwargs.get("render_mode"))
+
+
+def register_gym() -> None:
+    """Register ``repbench/PegInHole-v0`` with gymnasium (idempotent)."""
+    if GYM_ID not in gym.registry:
+        gym.register(id=GYM_ID, entry_point=_make_gym_env, disable_env_checker=False)
+
+
+register_gym()

@@ -1,0 +1,204 @@
+"""The robosuite 1.5.2 peg-in-hole simulation: a Panda holding a square peg rigidly, and a hole.
+
+The peg is a box welded into the gripper's ``eef`` body (below the wrist force/torque site, so the
+sensor feels every contact on it); it cannot slip. The hole is a fixed ``CompositeObject`` of four
+box walls on the table whose planar position is changed per episode through ``model.body_pos``
+(a soft reset, no XML rebuild). Physics runs at robosuite's 500 Hz; the wrist force/torque sensor is
+sampled at every physics substep for the low-pass filter (see :mod:`repbench_tasks.sensing`).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from typing import Any
+
+import numpy as np
+from repbench_tasks.sensing import weight_wrench
+from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
+from robosuite.models.arenas import TableArena
+from robosuite.models.objects import BoxObject
+from robosuite.models.objects.generated_objects import CompositeObject
+from robosuite.models.tasks import ManipulationTask
+from robosuite.utils.mjcf_utils import array_to_string, find_elements
+
+TABLE_FULL_SIZE = (0.8, 0.8, 0.05)
+TABLE_OFFSET = (0.0, 0.0, 0.8)
+TABLE_TOP_Z = TABLE_OFFSET[2]
+
+#: Names of the robot's arm bodies whose visual geoms the wrist camera never sees.
+ARM_BODY_PREFIXES = ("robot0_link", "robot0_base", "mount0_", "fixed_mount0_")
+
+
+def hole_walls(name: str, inner_half: float, wall: float, depth: float) -> CompositeObject:
+    """A square hole: four box walls around an opening of half-width ``inner_half``.
+
+    The object's origin is the centre of its footprint; its height is ``depth``.
+    """
+    outer = inner_half + wall
+    half_len_long = outer  # x-walls span the full outer width
+    half_len_short = inner_half  # y-walls fit between them
+    hz = depth / 2.0
+    sizes = [
+        (half_len_long, wall / 2, hz), (half_len_long, wall / 2, hz),
+        (wall / 2, half_len_short, hz), (wall / 2, half_len_short, hz),
+    ]
+    c = inner_half + wall / 2
+    locs = [(0.0, c, 0.0), (0.0, -c, 0.0), (c, 0.0, 0.0), (-c, 0.0, 0.0)]
+    return CompositeObject(
+        name=name,
+        total_size=[outer, outer, hz],
+        geom_types=["box"] * 4,
+        geom_sizes=sizes,
+        geom_locations=locs,
+        geom_names=["wall_py", "wall_ny", "wall_px", "wall_nx"],
+        geom_rgbas=[(0.15, 0.35, 0.75, 1.0)] * 4,
+        geom_frictions=[(0.3, 0.005, 0.0001)] * 4,
+        geom_condims=[4] * 4,
+        locations_relative_to_center=True,
+        joints=None,
+        obj_types="all",
+        density=1000.0,
+        solref=(0.02, 1.0),
+        solimp=(0.9, 0.95, 0.001),
+    )
+
+
+class PegInHoleSim(ManipulationEnv):
+    """Single-arm Panda peg-in-hole on robosuite's table arena.
+
+    Args:
+        peg_half_width: half the side of the square peg (m).
+        peg_length: peg length (m); it sticks out ``peg_length - peg_grip`` below the fingers.
+        clearance: gap between the peg and each hole wall when centred (m).
+        hole_depth: wall height = insertion depth to the table (m).
+        wall_thickness: thickness of the hole's walls (m).
+        action_scale: end-effector displacement per step for an action of 1 (m).
+        kwargs: passed to :class:`ManipulationEnv` (cameras, renderer flags, ...).
+    """
+
+    def __init__(self, *, peg_half_width: float, peg_length: float, clearance: float,
+                 hole_depth: float, wall_thickness: float, action_scale: float,
+                 physics_dt: float = 0.002, **kwargs: Any) -> None:
+        self.physics_dt = physics_dt
+        self.peg_half_width = peg_half_width
+        self.peg_length = peg_length
+        self.clearance = clearance
+        self.hole_depth = hole_depth
+        self.wall_thickness = wall_thickness
+        self.table_full_size = TABLE_FULL_SIZE
+        self.table_offset = np.array(TABLE_OFFSET)
+        self.hole_xy = np.zeros(2)
+        self.ft_samples: list[np.ndarray] = []
+        controller = {
+            "type": "BASIC",
+            "body_parts": {"right": {
+                "type": "OSC_POSE", "input_max": 1, "input_min": -1,
+                "output_max": [action_scale] * 3 + [0.5] * 3,
+                "output_min": [-action_scale] * 3 + [-0.5] * 3,
+                "kp": 150, "damping_ratio": 1, "impedance_mode": "fixed",
+                "kp_limits": [0, 300], "damping_ratio_limits": [0, 10],
+                "position_limits": None, "orientation_limits": None,
+                "uncouple_pos_ori": True, "input_type": "delta", "input_ref_frame": "world",
+                "interpolation": None, "ramp_ratio": 0.2, "gripper": {"type": "GRIP"},
+            }},
+        }
+        super().__init__(robots="Panda", controller_configs=controller,
+                         initialization_noise=None, **kwargs)
+
+    # -- model -------------------------------------------------------------------------------
+    def initialize_time(self, control_freq: float) -> None:
+        super().initialize_time(control_freq)
+        self.model_timestep = self.physics_dt
+
+    def _load_model(self) -> None:
+        super()._load_model()
+        robot_model = self.robots[0].robot_model
+        robot_model.set_base_xpos(robot_model.base_xpos_offset["table"](self.table_full_size[0]))
+        arena = TableArena(table_full_size=self.table_full_size,
+                           table_friction=(1.0, 5e-3, 1e-4), table_offset=self.table_offset)
+        arena.set_origin([0, 0, 0])
+
+        hw, length = self.peg_half_width, self.peg_length
+        self.peg = BoxObject(name="peg", size=[hw, hw, length / 2], rgba=[0.85, 0.55, 0.15, 1],
+                             joints=None, obj_type="all", density=500.0,
+                             friction=(0.3, 0.005, 0.0001))
+        peg_obj = self.peg.get_obj()
+        # The peg's top sits 2 cm inside the hand (between the finger pads).
+        self.peg_center_in_eef = length / 2 - 0.02
+        peg_obj.set("pos", array_to_string([0, 0, self.peg_center_in_eef]))
+        eef_body = find_elements(root=robot_model.worldbody, tags="body",
+                                 attribs={"name": "gripper0_right_eef"}, return_first=True)
+        eef_body.append(peg_obj)
+
+        self.hole = hole_walls("hole", hw + self.clearance, self.wall_thickness, self.hole_depth)
+        hole_obj = self.hole.get_obj()
+        hole_obj.set("pos", array_to_string([0.0, 0.0, TABLE_TOP_Z + self.hole_depth / 2]))
+        arena.worldbody.append(hole_obj)
+
+        self.model = ManipulationTask(mujoco_arena=arena, mujoco_robots=[robot_model])
+        option = find_elements(root=self.model.root, tags="option", return_first=True)
+        option.set("timestep", repr(float(self.physics_dt)))
+        self.model.merge_assets(self.peg)
+        self.model.merge_assets(self.hole)
+        contact = find_elements(root=self.model.root, tags="contact", return_first=True)
+        if contact is None:
+            contact = ET.SubElement(self.model.root, "contact")
+        for finger in ("gripper0_right_leftfinger", "gripper0_right_rightfinger",
+                       "gripper0_right_finger_joint1_tip", "gripper0_right_finger_joint2_tip"):
+            ET.SubElement(contact, "exclude", body1=self.peg.root_body, body2=finger)
+
+    def _setup_references(self) -> None:
+        super()._setup_references()
+        m = self.sim.model
+        self.hole_body_id = m.body_name2id(self.hole.root_body)
+        self.peg_body_id = m.body_name2id(self.peg.root_body)
+        self.peg_geom_ids = np.array([m.geom_name2id(g) for g in self.peg.contact_geoms])
+        self.hole_geom_ids = np.array([m.geom_name2id(g) for g in self.hole.contact_geoms])
+        self.table_geom_id = m.geom_name2id("table_collision")
+        robot = self.robots[0]
+        self.ft_body_id = m.body_name2id("gripper0_right_right_gripper")
+        self.ft_site_id = m.site_name2id("gripper0_right_ft_frame")
+        force_sensor = robot.gripper["right"].important_sensors["force_ee"]
+        torque_sensor = robot.gripper["right"].important_sensors["torque_ee"]
+        self.force_adr = int(m.sensor_adr[m.sensor_name2id(force_sensor)])
+        self.torque_adr = int(m.sensor_adr[m.sensor_name2id(torque_sensor)])
+        self.eef_site_id = m.site_name2id("gripper0_right_grip_site")
+        self.arm_qpos_idx = np.array(robot._ref_joint_pos_indexes)
+        self.arm_qvel_idx = np.array(robot._ref_joint_vel_indexes)
+
+    def _reset_internal(self) -> None:
+        super()._reset_internal()
+        if hasattr(self, "hole_body_id"):
+            self.set_hole_xy(self.hole_xy)
+        self.ft_samples = []
+
+    # -- task hooks (the gymnasium wrapper computes rewards) -----------------------------------
+    def reward(self, action: Any = None) -> float:
+        return 0.0
+
+    def _check_success(self) -> bool:
+        return False
+
+    def _pre_action(self, action: Any, policy_step: bool = False) -> None:
+        super()._pre_action(action, policy_step)
+        self.ft_samples.append(self.compensated_ft())
+
+    # -- helpers -------------------------------------------------------------------------------
+    def raw_ft(self) -> np.ndarray:
+        """The wrist sensor's raw [force, torque] in the sensor frame (weight included)."""
+        d = self.sim.data._data.sensordata
+        return np.concatenate((d[self.force_adr:self.force_adr + 3],
+                               d[self.torque_adr:self.torque_adr + 3]))
+
+    def compensated_ft(self) -> np.ndarray:
+        """The wrist [force, torque] with the hand-and-peg weight removed (sensor frame)."""
+        m, d = self.sim.model._model, self.sim.data._data
+        rot = d.site_xmat[self.ft_site_id].reshape(3, 3)
+        weight = weight_wrench(rot, d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id],
+                               float(m.body_subtreemass[self.ft_body_id]), m.opt.gravity)
+        return self.raw_ft() - weight
+
+    def set_hole_xy(self, xy: np.ndarray) -> None:
+        """Move the fixed hole (soft reset: ``model.body_pos``, then kinematics)."""
+        self.hole_xy = np.asarray(xy, dtype=np.float64).copy()
+        self.sim.model.body_pos[self.hole_body_id][:2] = self.hole_xy

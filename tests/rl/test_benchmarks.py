@@ -1,0 +1,96 @@
+"""Speed: the encoder in the loop must cost little (target: VAE ≥ 90 % of the oracle's steps/s).
+
+Run with ``pytest --benchmark-only -m "slow or not slow" tests/rl -s``. Each benchmark measures
+the oracle and a VAE encoder in the same run, alternating rounds so machine load hits both
+alike, and reports the ratio in ``extra_info`` (and on stdout with ``-s``).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+from rl_test_encoders import ConvEncoder, TrueStateEncoder
+
+import repbench
+from repbench.rl import SACAgent, make_encoded_env
+from repbench.rl.agents import torch_threads
+from repbench.testing.toy_task import ToyReachTask
+
+
+def _task(name: str) -> Any:
+    if name == "toy":
+        return ToyReachTask(horizon=50)
+    try:
+        return repbench.tasks.get(name)(horizon=50)
+    except Exception as exc:  # the real task may not be installed yet
+        pytest.skip(f"task {name} unavailable: {exc}")
+
+
+def _encoders(task: Any) -> dict[str, repbench.Encoder]:
+    data = task.collect("random", n_episodes=2, steps_per_episode=20, seed=0, progress=False)
+    try:
+        oracle = repbench.encoders.get("oracle")().fit(data)
+        vae = repbench.encoders.get("vae_lowkl")(latent_dim=16, epochs=1, batch_size=16,
+                                                  progress=False).fit(data)
+    except Exception:  # the encoder plugins may not be installed yet: VAE-sized stand-ins
+        oracle = TrueStateEncoder().fit(data)
+        vae = ConvEncoder(latent_dim=16).fit(data)
+    return {"oracle": oracle, "vae": vae}
+
+
+def _env_rate(env: Any, n: int, seed: int = 0) -> float:
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    t0 = time.perf_counter()
+    for _ in range(n):
+        _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, env.action_space.shape))
+        if term or trunc:
+            env.reset()
+    return n / (time.perf_counter() - t0)
+
+
+@pytest.mark.parametrize("task_name", ["toy", "PegInHole-v0"])
+def test_env_steps_vae_vs_oracle(benchmark, task_name):
+    task = _task(task_name)
+    encs = _encoders(task)
+    envs = {k: make_encoded_env(task, e, seed=0) for k, e in encs.items()}
+    raw = task.make_env(seed=0)
+    rates: dict[str, list[float]] = {"raw": [], "oracle": [], "vae": []}
+    n = 300 if task_name == "toy" else 100
+    with torch_threads(1):  # as during training
+        for _ in range(5):
+            rates["raw"].append(_env_rate(raw, n))
+            for k, env in envs.items():
+                rates[k].append(_env_rate(env, n))
+        med = {k: statistics.median(v) for k, v in rates.items()}
+        ratio = med["vae"] / med["oracle"]
+        benchmark.extra_info.update({f"{k}_steps_per_s": v for k, v in med.items()})
+        benchmark.extra_info["vae_over_oracle"] = ratio
+        benchmark.extra_info["vae_encode_ms"] = 1e3 * (1 / med["vae"] - 1 / med["oracle"])
+        print(f"\n[{task_name}] env steps/s raw {med['raw']:.0f}, oracle {med['oracle']:.0f}, "
+              f"VAE {med['vae']:.0f} ({type(encs['vae']).__name__}); VAE/oracle = {ratio:.3f}")
+        benchmark.pedantic(_env_rate, args=(envs["vae"], n), rounds=3, iterations=1)
+
+
+def test_training_steps_vae_vs_oracle(benchmark):
+    """SAC training steps/s (updates included) on the toy task, oracle vs VAE, same run."""
+    task = _task("toy")
+    encs = _encoders(task)
+    agent = SACAgent(learning_starts=100, batch_size=256, progress=False)
+    rates: dict[str, list[float]] = {"oracle": [], "vae": []}
+    for rnd in range(2):
+        for k, enc in encs.items():
+            res = agent.train(task, enc, train_steps=600, seed=rnd, eval_episodes=1,
+                              curve_points=1, progress=False)
+            rates[k].append(res.steps_per_s)
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    ratio = med["vae"] / med["oracle"]
+    benchmark.extra_info.update({f"{k}_train_steps_per_s": v for k, v in med.items()})
+    benchmark.extra_info["vae_over_oracle"] = ratio
+    print(f"\n[toy, SAC training] steps/s oracle {med['oracle']:.1f}, VAE {med['vae']:.1f}; "
+          f"VAE/oracle = {ratio:.3f}")
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)

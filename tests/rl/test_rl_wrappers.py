@@ -1,0 +1,80 @@
+"""The observation wrapper: μ_z ⊕ robot state, frozen encoder, clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from rl_test_encoders import BadEncoder, ConvEncoder, TrueStateEncoder
+
+from repbench.errors import ConfigError, DataError
+from repbench.rl import FrozenEncoderObservation, make_encoded_env
+
+
+def test_features_are_latent_then_robot_state(toy_task, state_encoder):
+    env = make_encoded_env(toy_task, state_encoder, seed=0)
+    assert env.observation_space.shape == (6 + 4,)
+    assert env.observation_space.dtype == np.float32
+    obs, info = env.reset(seed=7)
+    assert obs.dtype == np.float32
+    np.testing.assert_array_equal(obs[:6], info["true_state"])
+    np.testing.assert_array_equal(obs[6:], info["true_state"][:4])  # proprio = pos, vel
+    obs, _, _, _, info = env.step(np.ones(2, np.float32))
+    np.testing.assert_array_equal(obs[:6], info["true_state"])
+    assert env.observation_space.contains(obs)
+
+
+def test_episode_truncates_at_task_horizon(toy_task, state_encoder):
+    env = make_encoded_env(toy_task, state_encoder)
+    env.reset(seed=0)
+    steps, done = 0, False
+    while not done:
+        _, _, term, trunc, _ = env.step(env.action_space.sample())
+        done = term or trunc
+        steps += 1
+    assert steps == toy_task.horizon
+
+
+def test_torch_encoder_is_frozen(toy_task, toy_dataset):
+    enc = ConvEncoder(latent_dim=5).fit(toy_dataset)
+    enc.conv_.train()
+    env = make_encoded_env(toy_task, enc)
+    assert not enc.conv_.training
+    assert not any(p.requires_grad for p in enc.fusion_.parameters())
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (5 + 4,) and np.isfinite(obs).all()
+    assert torch.is_grad_enabled()  # the wrapper does not leak no_grad
+
+
+def test_unfitted_encoder_is_rejected(toy_task):
+    with pytest.raises(ConfigError, match="TrueStateEncoder is not fitted"):
+        make_encoded_env(toy_task, TrueStateEncoder())
+
+
+def test_wrong_latent_shape_names_the_encoder(toy_task, toy_dataset):
+    with pytest.raises(DataError, match=r"encoder BadEncoder returned shape \(1, 5\).*latent_dim "
+                                        r"is 6"):
+        make_encoded_env(toy_task, BadEncoder("shape").fit(toy_dataset))
+
+
+def test_nan_latent_names_the_encoder(toy_task, toy_dataset):
+    with pytest.raises(DataError, match="encoder BadEncoder returned NaN"):
+        make_encoded_env(toy_task, BadEncoder("nan").fit(toy_dataset))
+
+
+def test_nan_in_observation_is_caught(toy_task, state_encoder):
+    env = toy_task.make_env()
+    wrapped = FrozenEncoderObservation(env, toy_task, state_encoder)
+    obs, info = env.reset(seed=0)
+    obs["ft"][2] = np.nan
+    with pytest.raises(DataError, match=r"modality 'ft' .* NaN .*encoder TrueStateEncoder"):
+        wrapped.features(obs, info["true_state"])
+
+
+def test_latent_size_other_than_the_agent_was_built_for(toy_task, state_encoder, noise_encoder):
+    dim = make_encoded_env(toy_task, state_encoder).observation_space.shape[0]
+    make_encoded_env(toy_task, state_encoder, expected_dim=dim)  # fine
+    msg = r"encoder NoiseEncoder gives latent_dim 3 .* built for 10"
+    with pytest.raises(ConfigError, match=msg):
+        make_encoded_env(toy_task, type(noise_encoder)(latent_dim=3).fit(None),
+                         expected_dim=dim)

@@ -1,0 +1,98 @@
+"""The runner on the fast toy task, in-process: plan, run, resume, isolate failures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from repbench.errors import ConfigError
+from repbench.metric import MetricResult, metric
+from repbench.registry import metrics
+from repbench.runner import rebuild_leaderboards, run_suite
+
+SUITE = """
+name = "toy"
+tasks = ["ToyReach-v0"]
+encoders = ["oracle", "pca", "proprio_only"]
+metrics = ["ksg", "regression", "coherence"]
+agents = ["sac"]
+seeds = [0, 1]
+[dataset]
+random_episodes = 4
+random_steps = 25
+on_policy_episodes = 2
+on_policy_steps = 25
+[encoder_training]
+latent_dim = 4
+epochs = 1
+[rl]
+train_steps = 150
+eval_episodes = 2
+curve_points = 2
+full_state_train_steps = 150
+[metric_settings]
+bootstrap = 10
+[task_params."ToyReach-v0"]
+horizon = 25
+[agent_params.sac]
+learning_starts = 50
+batch_size = 32
+"""
+
+
+@pytest.fixture
+def suite_file(tmp_path: Path) -> Path:
+    p = tmp_path / "toy.toml"
+    p.write_text(SUITE)
+    return p
+
+
+def test_run_then_resume_recomputes_nothing(suite_file: Path, tmp_path: Path) -> None:
+    first = run_suite(suite_file, store=tmp_path / "s", out=tmp_path / "lb", workers=1,
+                      progress=False)
+    assert not first.report.failed and not first.report.skipped
+    # 1 random + 1 full-state + 1 on-policy + diagnostics + 3 × (encoder, latents, 3 metrics,
+    # 2 RL seeds)
+    assert len(first.report.done) == 4 + 3 * (2 + 3 + 2)
+    enc = pd.read_csv(tmp_path / "lb" / "encoders.csv")
+    assert sorted(enc["encoder"]) == ["oracle", "pca", "proprio_only"]
+    assert (enc["sac_seeds"] == 2).all() and enc["ksg"].notna().all()
+    met = pd.read_csv(tmp_path / "lb" / "metrics.csv")
+    assert set(met["metric"]) == {"ksg", "regression", "coherence"}
+    second = run_suite(suite_file, store=tmp_path / "s", out=tmp_path / "lb2", workers=1,
+                       progress=False)
+    assert second.report.done == {} and len(second.report.cached) == len(first.report.done)
+    pd.testing.assert_frame_equal(enc, pd.read_csv(tmp_path / "lb2" / "encoders.csv"))
+    rebuild_leaderboards(suite_file, store=tmp_path / "s", out=tmp_path / "lb3")
+    pd.testing.assert_frame_equal(met, pd.read_csv(tmp_path / "lb3" / "metrics.csv"))
+
+
+def test_a_failing_stage_is_isolated(suite_file: Path, tmp_path: Path) -> None:
+    @metric("always_fails_test", higher_is_better=True)
+    def always_fails(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
+                     rng: np.random.Generator, n_bootstrap: int = 10) -> MetricResult:
+        raise RuntimeError("this metric is broken on purpose")
+
+    text = suite_file.read_text().replace('"coherence"]', '"coherence", "always_fails_test"]')
+    suite_file.write_text(text.replace("seeds = [0, 1]", "seeds = [0]"))
+    try:
+        res = run_suite(suite_file, store=tmp_path / "s", out=tmp_path / "lb", workers=1,
+                        progress=False)
+    finally:
+        metrics.unregister("always_fails_test")
+    assert len(res.report.failed) == 3  # one per encoder
+    assert all("broken on purpose" in e for e in res.report.failed.values())
+    enc = pd.read_csv(tmp_path / "lb" / "encoders.csv")
+    assert enc["ksg"].notna().all() and enc["sac_return"].notna().all()
+    assert "always_fails_test" in (tmp_path / "lb" / "index.html").read_text()  # as missing
+
+
+def test_bad_parameter_fails_before_any_work(suite_file: Path, tmp_path: Path) -> None:
+    suite_file.write_text(SUITE + '\n[encoder_params.pca]\nn_componentz = 3\n')
+    with pytest.raises(ConfigError, match=r"encoder_params\.pca: unknown parameter"):
+        run_suite(suite_file, store=tmp_path / "s", out=tmp_path / "lb", workers=1,
+                  progress=False)
+    assert not (tmp_path / "s" / "dataset").exists()

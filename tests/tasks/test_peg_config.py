@@ -1,0 +1,80 @@
+"""Constructor validation, rewards, and the force/torque filter (no simulator needed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from repbench_tasks.peg_in_hole import PegInHoleTask
+from repbench_tasks.rewards import RewardParams, staged_reward
+from repbench_tasks.sensing import LowPass, weight_wrench
+from scipy import signal
+
+from repbench.errors import ConfigError
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [
+    ({"grid_size": 0}, "grid_size"),
+    ({"grid_size": 2.5}, "grid_size"),
+    ({"grid_extent": 0.9}, "off the table"),
+    ({"grid_center": (0.35, 0.0)}, "off the table"),
+    ({"clearance": 0.0001}, "clearance"),
+    ({"clearance": 0.05}, "clearance"),
+    ({"image_size": 0}, "image_size"),
+    ({"horizon": 0}, "horizon"),
+    ({"start": "sideways"}, "start"),
+    ({"hole_sampling": "random"}, "hole_sampling"),
+    ({"physics_dt": 0.003}, "physics_dt"),
+])
+def test_bad_constructor_args_raise_one_line_config_error(kwargs, field) -> None:
+    with pytest.raises(ConfigError, match=field) as exc:
+        PegInHoleTask(**kwargs)
+    assert "\n" not in str(exc.value)
+
+
+def test_unknown_override_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        PegInHoleTask().config(colour="red")
+
+
+def test_params_roundtrip_and_grid() -> None:
+    task = PegInHoleTask(grid_size=5, grid_extent=0.16)
+    assert PegInHoleTask(**task.get_params()).get_params() == task.get_params()
+    grid = task.config().grid_positions()
+    assert grid.shape == (25, 2)
+    np.testing.assert_allclose(grid.min(0), [-0.08, -0.08])
+    np.testing.assert_allclose(np.diff(np.unique(grid[:, 0])), 0.04)
+
+
+def test_reward_stages_increase_along_an_insertion() -> None:
+    p = RewardParams(hole_depth=0.04, inner_half=0.014)
+    far, _ = staged_reward(np.array([0.1, 0.05, 0.1]), p)
+    near, _ = staged_reward(np.array([0.02, 0.0, 0.03]), p)
+    align, _ = staged_reward(np.array([0.002, 0.0, 0.01]), p)
+    shallow, _ = staged_reward(np.array([0.0, 0.0, -0.01]), p)
+    deep, _ = staged_reward(np.array([0.0, 0.0, -0.025]), p)
+    done, ok = staged_reward(np.array([0.0, 0.0, -0.035]), p)
+    assert 0 < far < near <= 1 < align <= 2 < 4 <= shallow < deep < 6 < done == 10 and ok
+    # below the opening but outside it (beside the hole) is not insertion
+    assert staged_reward(np.array([0.05, 0.0, -0.02]), p)[0] < 1
+
+
+def test_lowpass_in_chunks_equals_scipy_on_the_whole_signal() -> None:
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(100, 6)) + 3.0
+    lp = LowPass(10.0, 200.0)
+    lp.reset(np.zeros(6))
+    chunked = np.stack([lp(c) for c in np.split(x, 10)])
+    whole = signal.sosfilt(lp.sos, x, axis=0)
+    np.testing.assert_allclose(chunked, whole[9::10], atol=1e-12)
+    # a constant settles to itself (unit DC gain)
+    lp.reset(np.zeros(6))
+    lp(np.ones((400, 6)))
+    np.testing.assert_allclose(lp.value, 1.0, atol=1e-6)
+
+
+def test_weight_wrench_of_a_hanging_mass() -> None:
+    # sensor frame = world, mass 1 kg with its centre 0.1 m along +x from the site
+    w = weight_wrench(np.eye(3), np.array([0.1, 0, 0]), np.zeros(3), 1.0,
+                      np.array([0, 0, -9.81]))
+    np.testing.assert_allclose(w[:3], [0, 0, 9.81])
+    np.testing.assert_allclose(w[3:], [0, -0.981, 0], atol=1e-12)
