@@ -117,9 +117,10 @@ def latent_distance(res: Any, path: Path) -> Path | None:
     colors = _colors(list(curves))
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     for enc, c in sorted(curves.items()):
-        ax.plot(c["offsets"], c["mean"], marker=".", color=colors[enc], label=enc)
+        y = c.get("mean_distance_normalized") or c["mean_distance"]
+        ax.plot(c["offsets"], y, marker=".", color=colors[enc], label=enc)
     ax.set_xlabel("time offset T (steps)")
-    ax.set_ylabel("E‖z_n − z_{n+T}‖ (standardized z)")
+    ax.set_ylabel("E‖z_n − z_{n+T}‖ / scale of z")
     ax.set_title("Latent distance against time offset", fontsize=10)
     ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
@@ -129,18 +130,17 @@ def latent_distance(res: Any, path: Path) -> Path | None:
 def smoothness_hist(res: Any, path: Path) -> Path | None:
     """Histogram of ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ for every encoder."""
     extras = _smoothness_extras(res)
-    hists = {e: x["ratio_histogram"] for e, x in extras.items() if x.get("ratio_histogram")}
+    hists = {e: x["histogram"] for e, x in extras.items() if x.get("histogram")}
     if not hists:
         return None
     colors = _colors(list(hists))
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
     for enc, h in sorted(hists.items()):
-        edges = np.asarray(h["edges"], dtype=float)
+        edges = np.asarray(h["bin_edges"], dtype=float)
         counts = np.asarray(h["counts"], dtype=float)
-        dens = counts / max(1.0, counts.sum())
+        dens = counts / max(1.0, counts.sum() + h.get("overflow", 0))
         ax.stairs(dens, edges, color=colors[enc], label=enc)
-    ax.set_xscale("log")
-    ax.set_xlabel("‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖")
+    ax.set_xlabel("‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ (each standardized)")
     ax.set_ylabel("fraction of pairs")
     ax.set_title("Encoder smoothness", fontsize=10)
     ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
@@ -149,23 +149,33 @@ def smoothness_hist(res: Any, path: Path) -> Path | None:
 
 
 def true_state_diffs(res: Any, path: Path) -> Path | None:
-    """First and second differences of z° (summed over dimensions), per dataset."""
+    """First and second differences of one z° element per dataset: the moving dimension with
+    the largest spread, with its skew, excess kurtosis and normality-test p-value."""
     panels = []
     for task, by_source in res.diagnostics.items():
-        for source, d in by_source.items():
+        for source, d in sorted(by_source.items()):
+            first = d.get("first") or []
+            moving = [j for j, x in enumerate(first) if not x.get("static") and x.get("histogram")]
+            if not moving:
+                continue
+            dim = max(moving, key=lambda j: first[j]["std"])
             for order in ("first", "second"):
-                h = (d.get(order) or {}).get("sum_histogram")
-                if h:
-                    panels.append((f"{task} {source}: {order} difference", h))
+                x = d[order][dim]
+                if x.get("histogram"):
+                    panels.append((f"{task} {source}\n{order} difference of z°[{dim}]", x))
     if not panels:
         return None
-    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(3.2 * len(panels), 2.8))
-    for ax, (title, h) in zip(axes[0], panels, strict=True):
-        ax.stairs(np.asarray(h["counts"], float), np.asarray(h["edges"], float), fill=True,
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(3.2 * len(panels), 3.0))
+    for ax, (title, x) in zip(axes[0], panels, strict=True):
+        h = x["histogram"]
+        ax.stairs(np.asarray(h["counts"], float), np.asarray(h["bin_edges"], float), fill=True,
                   alpha=0.7)
         ax.set_title(title, fontsize=8)
+        ax.text(0.02, 0.97, f"skew {x['skew']:.2f}\nex. kurt {x['excess_kurtosis']:.2f}\n"
+                f"normality p {x['normaltest_pvalue']:.2g}", transform=ax.transAxes,
+                fontsize=6.5, va="top")
         ax.tick_params(labelsize=7)
-    fig.suptitle("Distribution of true-state differences (sum over dimensions)", fontsize=9)
+    fig.suptitle("True-state differences (paper Fig. 6a)", fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
 
