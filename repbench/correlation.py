@@ -36,6 +36,34 @@ def _coefficients(x: np.ndarray, y: np.ndarray) -> dict[str, tuple[float, float]
     return out
 
 
+def _pearson_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Pearson r of each row pair of ``x`` and ``y`` (shape [B, n]); NaN for constant rows."""
+    xc = x - x.mean(axis=1, keepdims=True)
+    yc = y - y.mean(axis=1, keepdims=True)
+    den = np.sqrt((xc**2).sum(1) * (yc**2).sum(1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, (xc * yc).sum(1) / den, np.nan)
+
+
+def _kendall_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Kendall τ-b of each row pair (ties handled as scipy does)."""
+    iu = np.triu_indices(x.shape[1], k=1)
+    sx = np.sign(x[:, :, None] - x[:, None, :])[:, iu[0], iu[1]]
+    sy = np.sign(y[:, :, None] - y[:, None, :])[:, iu[0], iu[1]]
+    den = np.sqrt((sx**2).sum(1) * (sy**2).sum(1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, (sx * sy).sum(1) / den, np.nan)
+
+
+def batch_coefficients(x: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
+    """Pearson, Spearman and Kendall τ-b for each row of ``x``, ``y`` (shape [B, n]),
+    vectorized over rows; equal to scipy's per-row statistics."""
+    rx = stats.rankdata(x, axis=1)
+    ry = stats.rankdata(y, axis=1)
+    return {"pearson": _pearson_rows(x, y), "spearman": _pearson_rows(rx, ry),
+            "kendall": _kendall_rows(x, y)}
+
+
 def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence[float]], *,
               higher_is_better: bool, n_bootstrap: int = 1000, confidence: float = 0.95,
               seed: int = 0) -> dict[str, Any]:
@@ -66,21 +94,24 @@ def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence
     for m, (c, p) in _coefficients(x, y).items():
         out[m], out[f"{m}_p"] = c, p
     rng = np.random.default_rng(seed)
-    boot: dict[str, list[float]] = {m: [] for m in METHODS}
     n = len(names)
-    for _ in range(n_bootstrap):
-        idx = rng.integers(0, n, n)
-        if np.unique(idx).size < 3:
-            continue
-        xb = x[idx]
-        yb = np.array([rng.choice(per_seed[i], size=per_seed[i].size).mean() for i in idx])
-        for m, (c, _) in _coefficients(xb, yb).items():
-            if np.isfinite(c):
-                boot[m].append(c)
+    idx = rng.integers(0, n, (n_bootstrap, n))  # encoders drawn with replacement
+    keep = np.array([np.unique(row).size >= 3 for row in idx], dtype=bool)
+    idx = idx[keep]
+    # within each drawn encoder, its seeds drawn with replacement: mean of a seed resample
+    n_seeds = max(r.size for r in per_seed)
+    padded = np.array([np.resize(r, n_seeds) for r in per_seed])  # rows cycle their seeds
+    sizes = np.array([r.size for r in per_seed])
+    draws = (rng.random((idx.shape[0], n, n_seeds)) * sizes[idx][:, :, None]).astype(int)
+    mask = np.arange(n_seeds)[None, None, :] < sizes[idx][:, :, None]
+    picked = np.take_along_axis(padded[idx], draws, axis=2)
+    yb = (picked * mask).sum(2) / sizes[idx]
+    boot = batch_coefficients(x[idx], yb)
     alpha = (1.0 - confidence) / 2.0
     for m in METHODS:
-        if len(boot[m]) >= 10:
-            lo, hi = np.quantile(boot[m], [alpha, 1.0 - alpha])
+        finite = boot[m][np.isfinite(boot[m])]
+        if finite.size >= 10:
+            lo, hi = np.quantile(finite, [alpha, 1.0 - alpha])
             out[f"{m}_ci_low"], out[f"{m}_ci_high"] = float(lo), float(hi)
         else:
             out[f"{m}_ci_low"] = out[f"{m}_ci_high"] = nan
