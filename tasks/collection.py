@@ -23,20 +23,24 @@ class BackwardsExplorer:
     """Random actions with a weak upward bias, starting from the inserted peg.
 
     Uniform noise of amplitude ``noise`` plus ``upward_bias`` in z moves the peg out of the hole
-    slowly enough that a real share of steps is in contact with the walls; once the tip is more
-    than ``ceiling`` above the opening or ``radius`` away from the hole axis the bias turns back
-    towards the hole, so the walk keeps exploring near it (and touches it again).
+    slowly enough that a real share of steps is in contact with the walls; above the opening the
+    walk is unbiased, and once the tip is more than ``ceiling`` above the opening or ``radius``
+    away from the hole axis it is pushed back, so it keeps exploring near the hole and touching
+    it (fixture top, walls, re-insertions).
     """
 
     def __init__(self, rng: np.random.Generator, *, noise: float = 0.7, upward_bias: float = 0.1,
-                 ceiling: float = 0.08, radius: float = 0.06) -> None:
+                 ceiling: float = 0.04, radius: float = 0.03) -> None:
         self.rng, self.noise, self.bias = rng, noise, upward_bias
         self.ceiling, self.radius = ceiling, radius
 
     def __call__(self, offset: np.ndarray) -> np.ndarray:
         """Action for the tip ``offset`` from the centre of the hole's opening."""
         a = self.rng.uniform(-self.noise, self.noise, 3)
-        a[2] += self.bias if offset[2] < self.ceiling else -3 * self.bias
+        if offset[2] < 0:  # inside the hole: the weak upward bias works the peg out
+            a[2] += self.bias
+        elif offset[2] > self.ceiling:  # too high: come back down towards the hole
+            a[2] -= 3 * self.bias
         dist = float(np.linalg.norm(offset[:2]))
         if dist > self.radius:
             a[:2] -= 3 * self.bias * offset[:2] / dist
