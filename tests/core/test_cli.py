@@ -47,3 +47,11 @@ def test_doctor_renders() -> None:
     out = _repbench("doctor")
     assert "64x64 offscreen render ok" in out.stdout, out.stdout + out.stderr
     assert out.returncode == 0
+
+
+def test_task_preview_writes_a_contact_sheet(tmp_path: Path) -> None:
+    out = _repbench("task", "preview", "PegInHole-v0", "--frames", "4", "--out",
+                    str(tmp_path / "p.png"))
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "p.png").stat().st_size > 5_000
+    assert "WARNING" not in out.stderr  # robosuite's harmless import warnings are filtered
