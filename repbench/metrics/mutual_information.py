@@ -235,7 +235,8 @@ def mi_noisy(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ran
     x, y, notes = _prepare(z, z_true, "mi_noisy")
     if x.shape[1] == 0:
         return MetricResult(0.0, True, 0.0, 0.0, extras={**notes, "note": "z is constant"})
-    noisy = x + float(noise) * rng.standard_normal(x.shape)
+    noise_rng = np.random.default_rng(seed_from(rng))  # own stream for the channel noise
+    noisy = x + float(noise) * noise_rng.standard_normal(x.shape)
     capacity = 0.5 * x.shape[1] * math.log(1.0 + 1.0 / float(noise) ** 2)
     return _ksg_result(noisy, y, episode, rng, int(k), n_bootstrap,
                        {**notes, "noise": float(noise), "channel_capacity": capacity})

@@ -51,7 +51,7 @@ def _expect_data_error(m: Metric, what: str, *args: Any, **params: Any) -> None:
     raise AssertionError(f"{m.name}: {what} was accepted; it must raise DataError")
 
 
-def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, steps: int = 60,
+def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, episode_steps: int = 60,
                  seed: int = 0, **params: Any) -> MetricResult:
     """Check a metric against the repbench metric contract; raise AssertionError on failure.
 
@@ -71,7 +71,7 @@ def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, steps: i
         m = metric_or_name
     assert isinstance(m, Metric), f"{m!r} is not a repbench.Metric; decorate it with @metric"
     params.setdefault("n_bootstrap", 20)
-    z_true, episode = synthetic_true_state(n_episodes, steps, seed=seed)
+    z_true, episode = synthetic_true_state(n_episodes, episode_steps, seed=seed)
     rng = np.random.default_rng(seed + 1)
     z_random = rng.standard_normal(z_true.shape)
 

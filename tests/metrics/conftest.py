@@ -10,7 +10,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))  # for _reference
 
-from repbench.testing.metric import synthetic_true_state  # noqa: E402
+from repbench.testing.metric import synthetic_true_state
 
 
 def representations(z_true: np.ndarray, seed: int = 0) -> dict[str, np.ndarray]:
