@@ -173,7 +173,10 @@ class Registry(Generic[T]):
         entry_meta = self.metadata(name)
         if entry_meta.get("description"):
             return str(entry_meta["description"])
-        doc = inspect.getdoc(self.get(name)) or ""
+        obj = self.get(name)
+        if isinstance(getattr(obj, "description", None), str) and obj.description:
+            return str(obj.description)
+        doc = inspect.getdoc(obj) or ""
         return doc.strip().splitlines()[0] if doc.strip() else ""
 
     def names(self) -> list[str]:
