@@ -29,16 +29,16 @@ from typing import Any
 import numpy as np
 import torch
 import torch.nn.functional as F
+from repbench_encoders.networks import MultimodalVAENet, NetworkSpec, feature_map_size
 from tqdm.auto import tqdm
 
 from repbench.dataset import FT, IMAGE, LAST_ACTION, PROPRIO, Dataset
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError, TrainingDivergedError
-from repbench_encoders.networks import MultimodalVAENet, NetworkSpec, feature_map_size
 
 __all__ = [
     "VAE", "MultimodalVAE", "PredImVAE", "PredImVAELowKL", "PredZVAE", "PredZVAELowKL",
-    "SmoothVAE", "SmoothVAELowKL", "SuccessVAE", "SuccessVAELowKL", "VAELowKL",
+    "SmoothVAE", "SmoothVAELowKL", "SuccessVAE", "SuccessVAELowKL", "VAELowKL", "gaussian_kl",
 ]
 
 LOSS_TERMS = ("recon", "kl", "success", "pred_z", "pred_im", "smooth")
@@ -53,6 +53,14 @@ def resolve_device(device: str) -> torch.device:
     except RuntimeError as exc:
         raise ConfigError(f"device {device!r} is not a torch device ({exc}); use 'auto', "
                           "'cpu' or 'cuda'") from None
+
+
+def gaussian_kl(mu_q: torch.Tensor, log_std_q: torch.Tensor, mu_p: torch.Tensor,
+                log_std_p: torch.Tensor) -> torch.Tensor:
+    """KL(N(μ_q, σ_q²) ‖ N(μ_p, σ_p²)) of diagonal Gaussians, summed over the last axis."""
+    var_ratio = (2 * (log_std_q - log_std_p)).exp()
+    mean_term = ((mu_q - mu_p) / log_std_p.exp()) ** 2
+    return (0.5 * (var_ratio + mean_term - 1.0) - (log_std_q - log_std_p)).sum(-1)
 
 
 class MultimodalVAE(Encoder):
@@ -252,7 +260,7 @@ class MultimodalVAE(Encoder):
         target = img_u8.permute(0, 3, 1, 2).float() / 255.0
         recon = (((img_hat - target) * 255.0) ** 2).flatten(1).sum(1) + (
             ((ft_hat - data["ft"][rows]) * self.ft_recon_scale) ** 2).sum(1)
-        kl = 0.5 * (mu ** 2 + (2 * log_std).exp() - 1.0 - 2 * log_std).sum(1)
+        kl = gaussian_kl(mu, log_std, torch.zeros_like(mu), torch.zeros_like(log_std))
         zero = mu.new_zeros(())
         terms = {"recon": recon.mean(), "kl": kl.mean(), "success": zero, "pred_z": zero,
                  "pred_im": zero, "smooth": zero}
@@ -263,10 +271,7 @@ class MultimodalVAE(Encoder):
             a_n = data["action"][idx]
             if self.pred_z_weight > 0:
                 p_mu, p_log_std = net.predict_next_latent(z[:n], a_n)
-                q_mu, q_log_std = mu[n:], log_std[n:]
-                kl_pred = (p_log_std - q_log_std + ((2 * q_log_std).exp() + (q_mu - p_mu) ** 2)
-                           / (2 * (2 * p_log_std).exp()) - 0.5).sum(1)
-                terms["pred_z"] = kl_pred.mean()
+                terms["pred_z"] = gaussian_kl(mu[n:], log_std[n:], p_mu, p_log_std).mean()
             if self.pred_im_weight > 0:
                 im_next = net.predict_next_image(z[:n], a_n)
                 terms["pred_im"] = (((im_next - target[n:]) * 255.0) ** 2).flatten(1).sum(1).mean()
@@ -340,6 +345,10 @@ class MultimodalVAE(Encoder):
         out: dict[str, torch.Tensor] = {}
         for m in modalities:
             arr = np.asarray(observations[m]) if m not in batch else batch[m]
+            if arr.ndim == 0 or arr.shape[0] != batch[IMAGE].shape[0]:
+                raise DataError(f"{name}: modality {m!r} has {arr.shape[:1]} rows but 'image' "
+                                f"has {batch[IMAGE].shape[0]}; every modality needs one row "
+                                "per observation")
             if arr.shape[1:] != expect[m]:
                 raise DataError(f"{name}: modality {m!r} must have shape [N, "
                                 f"{', '.join(map(str, expect[m]))}] as at fit time, got "
@@ -446,7 +455,7 @@ def _to_uint8(img: torch.Tensor) -> np.ndarray:
 
 
 def _fmt(terms: Mapping[str, torch.Tensor]) -> str:
-    return ", ".join(f"{k}={float(v):.3g}" for k, v in terms.items() if k != "loss")
+    return ", ".join(f"{k}={float(v.detach()):.3g}" for k, v in terms.items() if k != "loss")
 
 
 # -- the ten registered variants (defaults only; the paper's weights) ------------------------

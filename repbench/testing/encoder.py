@@ -104,7 +104,7 @@ def check_encoder(plugin: str | type[Encoder] | Encoder, dataset: Dataset | None
         assert np.array_equal(obs[key], value), f"{name}.encode modified its input {key!r}"
     assert np.array_equal(enc.encode(obs), z), f"{name}.encode is not deterministic"
 
-    # -- batch-size invariance -------------------------------------------------------------------
+    # -- batch-size invariance -----------------------------------------------------------------
     tol = 1e-4 * (1.0 + float(np.abs(z).max()))
     singles = np.concatenate([enc.encode(_rows(obs, slice(i, i + 1))) for i in range(3)])
     assert singles.shape == (3, dim), f"{name}.encode of one row must return shape (1, {dim})"
@@ -117,7 +117,7 @@ def check_encoder(plugin: str | type[Encoder] | Encoder, dataset: Dataset | None
             f"batch by {err:.3g} (tolerance {tol:.3g})"
         )
 
-    # -- missing modalities ------------------------------------------------------------------------
+    # -- missing modalities --------------------------------------------------------------------
     for modality in enc.required_modalities:
         partial = {k: v for k, v in obs.items() if k != modality}
         try:
@@ -134,7 +134,7 @@ def check_encoder(plugin: str | type[Encoder] | Encoder, dataset: Dataset | None
         else:
             raise AssertionError(f"{name}.encode accepted a batch lacking {modality!r}")
 
-    # -- save / load ---------------------------------------------------------------------------------
+    # -- save / load ---------------------------------------------------------------------------
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "encoder.pt"
         returned = enc.save(path)
