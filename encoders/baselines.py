@@ -12,11 +12,11 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from repbench_encoders.vae import MultimodalVAE
 
 from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError
+from repbench_encoders.vae import MultimodalVAE
 
 __all__ = ["OracleEncoder", "PCAEncoder", "ProprioOnlyEncoder", "RandomEncoder"]
 

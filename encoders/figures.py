@@ -7,10 +7,10 @@ import os
 from pathlib import Path
 
 import numpy as np
-from repbench_encoders.vae import MultimodalVAE
 
 from repbench.dataset import IMAGE, Dataset
 from repbench.errors import DataError
+from repbench_encoders.vae import MultimodalVAE
 
 
 def save_reconstruction_figure(encoder: MultimodalVAE, dataset: Dataset,

@@ -23,18 +23,20 @@ variants with a temporal term train on such pairs and apply the VAE terms to bot
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 import torch.nn.functional as F
-from repbench_encoders.networks import MultimodalVAENet, NetworkSpec, feature_map_size
 from tqdm.auto import tqdm
 
 from repbench.dataset import FT, IMAGE, LAST_ACTION, PROPRIO, Dataset
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError, TrainingDivergedError
+from repbench_encoders.networks import MultimodalVAENet, NetworkSpec, feature_map_size
 
 __all__ = [
     "VAE", "MultimodalVAE", "PredImVAE", "PredImVAELowKL", "PredZVAE", "PredZVAELowKL",
@@ -391,6 +393,14 @@ class MultimodalVAE(Encoder):
             mu, _ = self.net_.encode(x[IMAGE], x[FT], x[PROPRIO])
             img = self.net_.predict_next_image(mu, (a - c["action_mean"]) / c["action_std"])
         return _to_uint8(img)
+
+    def save_reconstruction_figure(self, dataset: Dataset, path: str | os.PathLike[str],
+                                   n: int = 8) -> Path:
+        """The paper's appendix figure for this encoder (see :mod:`repbench_encoders.figures`);
+        the runner calls it after fitting and shows the PNG on the leaderboard page."""
+        from repbench_encoders.figures import save_reconstruction_figure
+
+        return save_reconstruction_figure(self, dataset, path, n=n)
 
     def _unstandardize_ft(self, ft: torch.Tensor) -> np.ndarray:
         c = self._constants()

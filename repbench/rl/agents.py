@@ -27,7 +27,13 @@ import numpy as np
 from repbench.agent import Agent, AgentResult
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, TrainingDivergedError
-from repbench.rl.wrappers import check_encoder_ready, encoder_label, make_encoded_env
+from repbench.rl.wrappers import (
+    batch_encoded_vec_env,
+    check_encoder_ready,
+    encoder_label,
+    make_encoded_env,
+    make_raw_env,
+)
 from repbench.task import Task
 
 #: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` for every encoder and agent.
@@ -207,20 +213,18 @@ class SB3Agent(Agent):
 
     # -- training ------------------------------------------------------------------------------
     def _make_vec_env(self, task: Task, encoder: Encoder, seed: int) -> Any:
+        """One environment: the gymnasium wrapper. ``n_envs`` > 1: raw environments in worker
+        processes (multi-core), their observations encoded in one batch here."""
         from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
+        if self.n_envs == 1:
+            return DummyVecEnv([lambda: make_encoded_env(task, encoder, seed=seed)])
+
         def factory(rank: int) -> Any:
-            def _init() -> Any:
-                if self.n_envs > 1:
-                    import torch
+            return lambda: make_raw_env(task, seed=seed + rank)
 
-                    torch.set_num_threads(1)  # one core per worker process
-                return make_encoded_env(task, encoder, seed=seed + rank)
-
-            return _init
-
-        fns = [factory(i) for i in range(self.n_envs)]
-        return SubprocVecEnv(fns) if self.n_envs > 1 else DummyVecEnv(fns)
+        venv = SubprocVecEnv([factory(i) for i in range(self.n_envs)])
+        return batch_encoded_vec_env(venv, task, encoder)
 
     def build_model(self, env: Any, seed: int, buffer_size: int | None = None) -> Any:
         """The SB3 model for ``env`` (a flat-Box environment or VecEnv)."""

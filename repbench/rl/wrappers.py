@@ -83,20 +83,26 @@ class ObservationEncoder:
     def __call__(self, observation: Mapping[str, Any], true_state: np.ndarray | None
                  ) -> np.ndarray:
         """Features (float32 ``[latent_dim + robot_dim]``) of one unbatched observation."""
+        return self.encode_batch(batch_one(observation, true_state))[0]
+
+    def encode_batch(self, batch: Mapping[str, Any]) -> np.ndarray:
+        """Features ``[N, latent_dim + robot_dim]`` of an observation batch (with
+        ``true_state``), encoded in one ``encoder.encode`` call."""
         import torch
 
-        for key, value in observation.items():
+        for key, value in batch.items():
             arr = np.asarray(value)
             if arr.dtype.kind == "f" and not np.isfinite(arr).all():
                 raise DataError(
                     f"observation modality {key!r} of task {self.task.task_id} contains NaN or "
                     f"inf; encoder {self.name} cannot encode it: fix the task/sensor"
                 )
+        n = len(next(iter(batch.values())))
         with torch.no_grad():
-            z = np.asarray(self.encoder.encode(batch_one(observation, true_state)))
-        if z.shape != (1, self.latent_dim):
+            z = np.asarray(self.encoder.encode(batch))
+        if z.shape != (n, self.latent_dim):
             raise DataError(
-                f"encoder {self.name} returned shape {z.shape} for one observation but its "
+                f"encoder {self.name} returned shape {z.shape} for {n} observation(s) but its "
                 f"latent_dim is {self.latent_dim}: encode must return [N, latent_dim]"
             )
         if not np.isfinite(z).all():
@@ -104,19 +110,22 @@ class ObservationEncoder:
                 f"encoder {self.name} returned NaN or inf for an observation of task "
                 f"{self.task.task_id}: the encoder is broken (diverged training?); refit it"
             )
-        robot = np.asarray(self.task.robot_state(observation), np.float32).reshape(-1)
+        robot = np.stack([
+            np.asarray(self.task.robot_state({k: v[i] for k, v in batch.items()
+                                              if k != TRUE_STATE}), np.float32).reshape(-1)
+            for i in range(n)])
         if not np.isfinite(robot).all():
             raise DataError(
                 f"robot state of task {self.task.task_id} contains NaN or inf; the agent on "
                 f"encoder {self.name} cannot use it"
             )
         if self.robot_dim is None:
-            self.robot_dim = robot.size
-        features = np.concatenate([z[0].astype(np.float32), robot])
-        if self.expected_dim is not None and features.size != self.expected_dim:
+            self.robot_dim = robot.shape[1]
+        features = np.concatenate([z.astype(np.float32), robot], axis=1)
+        if self.expected_dim is not None and features.shape[1] != self.expected_dim:
             raise ConfigError(
                 f"encoder {self.name} gives latent_dim {self.latent_dim} + robot state "
-                f"{robot.size} = {features.size} features but the agent was built for "
+                f"{robot.shape[1]} = {features.shape[1]} features but the agent was built for "
                 f"{self.expected_dim}: use the encoder the agent was trained with"
             )
         return features
@@ -165,3 +174,71 @@ def make_encoded_env(task: Task, encoder: Encoder, seed: int | None = None,
     if horizon:
         env = gym.wrappers.TimeLimit(env, max_episode_steps=int(horizon))
     return FrozenEncoderObservation(env, task, encoder, expected_dim)
+
+
+class TrueStateInObservation(gym.Wrapper):
+    """Adds ``info["true_state"]`` to the dict observation (so vectorised environments,
+    which return only observations on auto-reset, still carry it to the encoder)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        _, info = env.reset(seed=0)  # probe the true-state size
+        size = np.asarray(info[TRUE_STATE]).shape
+        self.observation_space = spaces.Dict({
+            **env.observation_space.spaces,
+            TRUE_STATE: spaces.Box(-np.inf, np.inf, size, np.float32)})
+
+    @staticmethod
+    def _add(obs: dict[str, Any], info: dict[str, Any]) -> dict[str, Any]:
+        return {**obs, TRUE_STATE: np.asarray(info[TRUE_STATE], np.float32)}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[dict[str, Any], dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._add(obs, info), info
+
+    def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._add(obs, info), reward, terminated, truncated, info
+
+
+def make_raw_env(task: Task, seed: int | None = None) -> gym.Env:
+    """``task.make_env(seed)`` truncated at ``task.horizon``, with ``true_state`` in the
+    observation dict (the per-process part of a vectorised, batch-encoded environment)."""
+    env = task.make_env(seed=seed)
+    horizon = getattr(task, "horizon", None)
+    if horizon:
+        env = gym.wrappers.TimeLimit(env, max_episode_steps=int(horizon))
+    return TrueStateInObservation(env)
+
+
+def batch_encoded_vec_env(venv: Any, task: Task, encoder: Encoder) -> Any:
+    """Wrap an SB3 VecEnv of :func:`make_raw_env` environments so that all ``n_envs``
+    observations of a step are encoded in one batch in this process (on the encoder's device:
+    one GPU call per step instead of one per environment), terminal observations included."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class BatchEncodedVecEnv(VecEnvWrapper):
+        """μ_z ⊕ robot state for a whole VecEnv step, in one ``encode`` call."""
+
+        def __init__(self) -> None:
+            self.features = ObservationEncoder(task, encoder)
+            probe = venv.reset()
+            dim = self.features.encode_batch(probe).shape[1]
+            super().__init__(venv, observation_space=spaces.Box(-np.inf, np.inf, (dim,),
+                                                                np.float32))
+
+        def reset(self) -> np.ndarray:
+            return self.features.encode_batch(self.venv.reset())
+
+        def step_wait(self) -> Any:
+            obs, rewards, dones, infos = self.venv.step_wait()
+            features = self.features.encode_batch(obs)
+            for info in infos:
+                if "terminal_observation" in info:
+                    term = {k: np.asarray(v)[None] for k, v in
+                            info["terminal_observation"].items()}
+                    info["terminal_observation"] = self.features.encode_batch(term)[0]
+            return features, rewards, dones, infos
+
+    return BatchEncodedVecEnv()

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import matplotlib.image as mpimg
 import pytest
-from repbench_encoders.figures import save_reconstruction_figure
 
 import repbench
 from repbench.dataset import Dataset
 from repbench.errors import DataError
+from repbench_encoders.figures import save_reconstruction_figure
 
 
 @pytest.mark.parametrize("name", ["vae_lowkl", "pred_im_lowkl"])

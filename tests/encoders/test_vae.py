@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from repbench_encoders.vae import MultimodalVAE, VAELowKL, gaussian_kl
 
 import repbench
 from repbench.dataset import Dataset
 from repbench.errors import ConfigError, DataError, TrainingDivergedError
+from repbench_encoders.vae import MultimodalVAE, VAELowKL, gaussian_kl
 
 FAST = {"epochs": 1, "batch_size": 8, "progress": False}
 
