@@ -36,8 +36,10 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
-def metric_vs_return(res: Any, path: Path) -> Path | None:
-    """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI)."""
+def metric_vs_return(res: Any, path: Path, correlations: pd.DataFrame | None = None
+                     ) -> Path | None:
+    """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI);
+    panel titles carry the direction-adjusted Spearman ρ from ``correlations``."""
     if not res.metric_rows or not res.rl_rows:
         return None
     metrics = sorted({r["metric"] for r in res.metric_rows})
@@ -67,7 +69,13 @@ def metric_vs_return(res: Any, path: Path) -> Path | None:
                 ax.annotate(r["encoder"], (x, m), fontsize=6, xytext=(3, 3),
                             textcoords="offset points")
             arrow = "↑" if res.provenance.get("directions", {}).get(metric, True) else "↓"
-            ax.set_title(f"{metric} {arrow}", fontsize=9)
+            rho = ""
+            if correlations is not None and not correlations.empty:
+                hit = correlations[(correlations["agent"] == agent)
+                                   & (correlations["metric"] == metric)]
+                if len(hit) and np.isfinite(hit["spearman"].iloc[0]):
+                    rho = f"  ρ={hit['spearman'].iloc[0]:+.2f}"
+            ax.set_title(f"{metric} {arrow}{rho}", fontsize=9)
             ax.tick_params(labelsize=7)
             if j == 0:
                 ax.set_ylabel(f"{agent} eval return", fontsize=8)
@@ -180,10 +188,14 @@ def true_state_diffs(res: Any, path: Path) -> Path | None:
     return _save(fig, path)
 
 
-def make_figures(res: Any, encoders_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
+def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
     """Render every figure that the results support; name → PNG path."""
+
+    def scatter(r: Any, p: Path) -> Path | None:
+        return metric_vs_return(r, p, metrics_df)
+
     makers = {
-        "Metric vs RL return (paper Fig. 3a, 4, 6b)": (metric_vs_return, "metric_vs_return"),
+        "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
         "Latent distance vs time offset (Fig. 5a)": (latent_distance, "latent_distance"),
         "Encoder smoothness histogram (Fig. 5b)": (smoothness_hist, "smoothness_hist"),
