@@ -76,21 +76,23 @@ def test_env_steps_vae_vs_oracle(benchmark, task_name):
         benchmark.pedantic(_env_rate, args=(envs["vae"], n), rounds=3, iterations=1)
 
 
-def test_training_steps_vae_vs_oracle(benchmark):
-    """SAC training steps/s (updates included) on the toy task, oracle vs VAE, same run."""
-    task = _task("toy")
+@pytest.mark.parametrize("task_name", ["toy", "PegInHole-v0"])
+def test_training_steps_vae_vs_oracle(benchmark, task_name):
+    """SAC training steps/s (updates included), oracle vs VAE, same run."""
+    task = _task(task_name)
     encs = _encoders(task)
-    agent = SACAgent(learning_starts=100, batch_size=256, progress=False)
+    agent = SACAgent(learning_starts=100, batch_size=256, curve_episodes=1, progress=False)
+    steps = 600 if task_name == "toy" else 300
     rates: dict[str, list[float]] = {"oracle": [], "vae": []}
     for rnd in range(2):
         for k, enc in encs.items():
-            res = agent.train(task, enc, train_steps=600, seed=rnd, eval_episodes=1,
+            res = agent.train(task, enc, train_steps=steps, seed=rnd, eval_episodes=1,
                               curve_points=1, progress=False)
             rates[k].append(res.steps_per_s)
     med = {k: statistics.median(v) for k, v in rates.items()}
     ratio = med["vae"] / med["oracle"]
     benchmark.extra_info.update({f"{k}_train_steps_per_s": v for k, v in med.items()})
     benchmark.extra_info["vae_over_oracle"] = ratio
-    print(f"\n[toy, SAC training] steps/s oracle {med['oracle']:.1f}, VAE {med['vae']:.1f}; "
-          f"VAE/oracle = {ratio:.3f}")
+    print(f"\n[{task_name}, SAC training] steps/s oracle {med['oracle']:.1f}, "
+          f"VAE {med['vae']:.1f}; VAE/oracle = {ratio:.3f}")
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)

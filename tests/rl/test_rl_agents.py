@@ -101,3 +101,11 @@ def test_unfitted_encoder_fails_before_training(toy_task):
     with pytest.raises(ConfigError, match="encoder TrueStateEncoder is not fitted"):
         DDPGAgent(**TINY).train(toy_task, TrueStateEncoder(), train_steps=100, seed=0,
                                 eval_episodes=1)
+
+
+@pytest.mark.slow  # worker processes start in ~10-40 s on a loaded 2-core machine
+def test_vectorised_training_in_worker_processes(toy_task, state_encoder):
+    result = SACAgent(**TINY, n_envs=2).train(toy_task, state_encoder, train_steps=80, seed=0,
+                                              eval_episodes=1, curve_points=2, progress=False)
+    assert result.train_steps >= 80 and result.extras["params"]["n_envs"] == 2
+    assert np.isfinite(result.eval_return) and len(result.curve_steps) == 2

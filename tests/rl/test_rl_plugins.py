@@ -19,19 +19,28 @@ def _plugin(name: str, **params):
 
 
 @pytest.fixture(scope="module")
-def real_encoders(toy_dataset):
-    oracle = _plugin("oracle").fit(toy_dataset)
+def short_task():
+    from repbench.testing.toy_task import ToyReachTask
+
+    return ToyReachTask(horizon=10)
+
+
+@pytest.fixture(scope="module")
+def real_encoders(short_task):
+    data = short_task.collect("random", n_episodes=2, steps_per_episode=8, seed=0,
+                              progress=False)
+    oracle = _plugin("oracle").fit(data)
     vae = _plugin("vae_lowkl", latent_dim=8, epochs=1, batch_size=16, progress=False,
-                  device="auto").fit(toy_dataset)
+                  device="auto").fit(data)
     return {"oracle": oracle, "vae_lowkl": vae}
 
 
 @pytest.mark.parametrize("agent", ["sac", "ddpg"])
 @pytest.mark.parametrize("encoder", ["oracle", "vae_lowkl"])
-def test_agents_on_real_encoders(agent, encoder, real_encoders, toy_task):
+def test_agents_on_real_encoders(agent, encoder, real_encoders, short_task):
     enc = real_encoders[encoder]
-    result = check_agent(agent, toy_task, enc, train_steps=60, learning_starts=20,
-                         batch_size=16)
+    result = check_agent(agent, short_task, enc, train_steps=30, eval_episodes=1,
+                         curve_points=1, learning_starts=10, batch_size=8)
     expected_dim = enc.latent_dim + 4
     assert result.extras["observation_dim"] == expected_dim
 

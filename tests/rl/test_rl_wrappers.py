@@ -78,3 +78,28 @@ def test_latent_size_other_than_the_agent_was_built_for(toy_task, state_encoder,
     with pytest.raises(ConfigError, match=msg):
         make_encoded_env(toy_task, type(noise_encoder)(latent_dim=3).fit(None),
                          expected_dim=dim)
+
+
+def test_batch_encoded_vec_env_matches_the_single_wrapper(toy_task, state_encoder):
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from repbench.rl.wrappers import batch_encoded_vec_env, make_raw_env
+
+    venv = batch_encoded_vec_env(
+        DummyVecEnv([lambda s=s: make_raw_env(toy_task, seed=s) for s in (0, 1)]),
+        toy_task, state_encoder)
+    singles = [make_encoded_env(toy_task, state_encoder) for _ in range(2)]
+    venv.seed(5)
+    obs = venv.reset()
+    assert obs.shape == (2, 10) and obs.dtype == np.float32
+    ref = np.stack([env.reset(seed=5 + i)[0] for i, env in enumerate(singles)])
+    np.testing.assert_array_equal(obs, ref)
+    actions = np.full((2, 2), 0.3, np.float32)
+    for t in range(toy_task.horizon):
+        obs, _, dones, infos = venv.step(actions)
+        ref_steps = [env.step(actions[i]) for i, env in enumerate(singles)]
+        if t < toy_task.horizon - 1:
+            np.testing.assert_array_equal(obs, np.stack([r[0] for r in ref_steps]))
+    assert dones.all()  # truncated at the horizon, auto-reset
+    for info, r in zip(infos, ref_steps, strict=True):
+        np.testing.assert_array_equal(info["terminal_observation"], r[0])
