@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _reference import ksg_mi_reference
 
 from repbench.metrics.mutual_information import ksg_mi
 from repbench.registry import metrics
 from repbench.testing.metric import synthetic_true_state
+
+from ._reference import ksg_mi_reference
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from _reference import knn_mse_reference, ksg_mi_reference
 
 from repbench.metrics.coherence import coherence
 from repbench.metrics.mutual_information import (
@@ -21,6 +20,8 @@ from repbench.metrics.mutual_information import (
 from repbench.metrics.regression import regression
 from repbench.metrics.smoothness import smoothness, smoothness_objective
 from repbench.testing.metric import synthetic_true_state
+
+from ._reference import knn_mse_reference, ksg_mi_reference
 
 COV4 = np.array([[1, .6, .5, .1], [.6, 1, .2, .4], [.5, .2, 1, .3], [.1, .4, .3, 1]])
 

@@ -1,15 +1,10 @@
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent))
-
-from rl_test_encoders import NoiseEncoder, TrueStateEncoder
-
 from repbench.testing.toy_task import ToyReachTask
+
+from .rl_test_encoders import NoiseEncoder, TrueStateEncoder
 
 
 @pytest.fixture(scope="session")

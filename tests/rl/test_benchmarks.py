@@ -13,12 +13,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-from rl_test_encoders import ConvEncoder, TrueStateEncoder
 
 import repbench
 from repbench.rl import SACAgent, make_encoded_env
 from repbench.rl.agents import torch_threads
 from repbench.testing.toy_task import ToyReachTask
+
+from .rl_test_encoders import ConvEncoder, TrueStateEncoder
 
 
 def _task(name: str) -> Any:

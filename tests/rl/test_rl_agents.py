@@ -96,7 +96,7 @@ def test_bad_params(field, value, match, toy_task, state_encoder):
 
 
 def test_unfitted_encoder_fails_before_training(toy_task):
-    from rl_test_encoders import TrueStateEncoder
+    from .rl_test_encoders import TrueStateEncoder
 
     with pytest.raises(ConfigError, match="encoder TrueStateEncoder is not fitted"):
         DDPGAgent(**TINY).train(toy_task, TrueStateEncoder(), train_steps=100, seed=0,

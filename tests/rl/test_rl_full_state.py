@@ -58,7 +58,7 @@ def test_on_policy_dataset_has_the_random_schema(trained, toy_task, toy_dataset,
 
 
 def test_policy_with_other_encoder_fails_clearly(trained, toy_task, noise_encoder, tmp_path):
-    from rl_test_encoders import NoiseEncoder
+    from .rl_test_encoders import NoiseEncoder
 
     path = save_policy(trained[0].model, tmp_path / "p.zip")
     smaller = NoiseEncoder(latent_dim=3).fit(None)

@@ -29,7 +29,7 @@ def _encoders(task):
         oracle = repbench.encoders.get("oracle")().fit(data)
         random = repbench.encoders.get("random")(latent_dim=16).fit(data)
     except repbench.RepbenchError:  # encoder plugins not installed: the test-local stand-ins
-        from rl_test_encoders import NoiseEncoder, TrueStateEncoder
+        from .rl_test_encoders import NoiseEncoder, TrueStateEncoder
 
         oracle, random = TrueStateEncoder().fit(data), NoiseEncoder(latent_dim=16).fit(data)
     return oracle, random

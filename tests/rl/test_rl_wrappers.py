@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from rl_test_encoders import BadEncoder, ConvEncoder, TrueStateEncoder
 
 from repbench.errors import ConfigError, DataError
 from repbench.rl import FrozenEncoderObservation, make_encoded_env
+
+from .rl_test_encoders import BadEncoder, ConvEncoder, TrueStateEncoder
 
 
 def test_features_are_latent_then_robot_state(toy_task, state_encoder):

@@ -1,16 +1,19 @@
 """Speed of the peg-in-hole environment: tuned wrist rendering vs robosuite's default rendering
 vs physics only, measured in the same run (run with ``pytest --benchmark-only -m "slow or not
 slow" tests/tasks``). The ratios are printed at the end of the session and stored in
-``extra_info``."""
+``extra_info``. Other processes share the cores, so ratios of the best rounds are printed beside
+the ratios of the means."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from repbench_tasks.peg_in_hole import PegInHoleTask
 
 STEPS = 20
 RATES: dict[str, float] = {}
+BEST: dict[str, float] = {}
 MODES = {"physics_only": {"camera": False}, "default_render": {"fast_render": False},
          "tuned_render": {}}
 
@@ -31,11 +34,16 @@ def test_env_steps_per_second(benchmark, mode: str) -> None:
     finally:
         env.close()
     RATES[mode] = STEPS / benchmark.stats.stats.mean
+    BEST[mode] = STEPS / benchmark.stats.stats.min
     benchmark.extra_info["steps_per_s"] = RATES[mode]
+    benchmark.extra_info["steps_per_s_best_round"] = BEST[mode]
     if mode == "tuned_render" and {"physics_only", "default_render"} <= RATES.keys():
-        ratios = {"tuned_over_default": RATES["tuned_render"] / RATES["default_render"],
-                  "tuned_over_physics": RATES["tuned_render"] / RATES["physics_only"]}
-        benchmark.extra_info.update(ratios)
-        print("\npeg-in-hole steps/s: " + ", ".join(f"{k} {v:.1f}" for k, v in RATES.items())
-              + f"; tuned/default = {ratios['tuned_over_default']:.1f}x, "
-              f"tuned/physics-only = {ratios['tuned_over_physics']:.0%}")
+        for label, rates in (("mean", RATES), ("best round", BEST)):
+            ratios = {"tuned_over_default": rates["tuned_render"] / rates["default_render"],
+                      "tuned_over_physics": rates["tuned_render"] / rates["physics_only"]}
+            if label == "mean":
+                benchmark.extra_info.update(ratios)
+            print(f"\npeg-in-hole steps/s ({label}): "
+                  + ", ".join(f"{k} {v:.1f}" for k, v in rates.items())
+                  + f"; tuned/default = {ratios['tuned_over_default']:.1f}x, "
+                  f"tuned/physics-only = {ratios['tuned_over_physics']:.0%}")

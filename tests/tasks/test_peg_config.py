@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from repbench_tasks.peg_in_hole import PegInHoleTask
-from repbench_tasks.rewards import RewardParams, staged_reward
-from repbench_tasks.sensing import LowPass, weight_wrench
 from scipy import signal
 
 from repbench.errors import ConfigError
+from repbench_tasks.peg_in_hole import PegInHoleTask
+from repbench_tasks.rewards import RewardParams, staged_reward
+from repbench_tasks.sensing import LowPass, weight_wrench
 
 
 @pytest.mark.parametrize(("kwargs", "field"), [
@@ -78,3 +78,18 @@ def test_weight_wrench_of_a_hanging_mass() -> None:
                       np.array([0, 0, -9.81]))
     np.testing.assert_allclose(w[:3], [0, 0, 9.81])
     np.testing.assert_allclose(w[3:], [0, -0.981, 0], atol=1e-12)
+
+
+def test_weight_wrench_batch_equals_single_samples_and_np_cross() -> None:
+    rng = np.random.default_rng(1)
+    rots = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(7)])
+    com, pos = rng.normal(size=(7, 3)), rng.normal(size=(7, 3))
+    g = np.array([0.0, 0.0, -9.81])
+    batch = weight_wrench(rots, com, pos, 1.7, g)
+    single = np.stack([weight_wrench(r, c, p, 1.7, g)
+                       for r, c, p in zip(rots, com, pos, strict=True)])
+    np.testing.assert_allclose(batch, single, rtol=0, atol=1e-12)
+    support = -1.7 * g
+    ref = np.concatenate([np.einsum("nji,j->ni", rots, support),
+                          np.einsum("nji,nj->ni", rots, np.cross(com - pos, support))], axis=1)
+    np.testing.assert_allclose(batch, ref, rtol=0, atol=1e-12)

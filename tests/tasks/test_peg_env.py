@@ -4,19 +4,13 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-import pytest
 from gymnasium.utils.env_checker import check_env
+from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
+
 from repbench_tasks.collection import BackwardsExplorer
 from repbench_tasks.env import PROPRIO_DIM, TRUE_STATE_DIM, PegInHoleEnv
 from repbench_tasks.peg_in_hole import GYM_ID, PegInHoleTask
 from repbench_tasks.rendering import WristRenderer, unseen_geom_ids
-
-
-@pytest.fixture(scope="module")
-def physics_env():
-    e = PegInHoleTask(horizon=400, camera=False).make_env()
-    yield e.unwrapped
-    e.close()
 
 
 def test_env_checker_passes(env: PegInHoleEnv) -> None:
@@ -62,6 +56,32 @@ def test_reset_is_deterministic_whatever_came_before(physics_env: PegInHoleEnv) 
     for _ in range(10):
         physics_env.step(np.array([1.0, 0.0, 0.0]))
     np.testing.assert_array_equal(rollout(), first)
+
+
+def test_fast_substeps_equal_robosuites_own_control_path(physics_env: PegInHoleEnv) -> None:
+    """repbench's control path (no per-substep checks, no history buffers) computes exactly
+    robosuite's torques: the same rollout bit for bit."""
+    sim = physics_env.sim
+    actions = np.random.default_rng(2).uniform(-1, 1, (12, 3))
+
+    def rollout() -> tuple[np.ndarray, np.ndarray]:
+        physics_env.reset(seed=9, options={"start": "inserted"})
+        obs = [physics_env.step(a)[0] for a in actions]
+        return np.stack([o["proprio"] for o in obs]), np.stack([o["ft"] for o in obs])
+
+    fast = rollout()
+
+    def robosuite_path(action, policy_step=False):
+        ManipulationEnv._pre_action(sim, action, policy_step)
+        sim._record_ft()
+
+    sim._pre_action = robosuite_path
+    try:
+        reference = rollout()
+    finally:
+        del sim._pre_action
+    np.testing.assert_array_equal(fast[0], reference[0])
+    np.testing.assert_array_equal(fast[1], reference[1])
 
 
 def test_inserted_start_is_success_and_above_is_not(physics_env: PegInHoleEnv) -> None:
