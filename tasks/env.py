@@ -20,6 +20,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
+
 from repbench_tasks.config import START_KINDS, PegInHoleConfig
 from repbench_tasks.rendering import WRIST_CAMERA, WristRenderer
 from repbench_tasks.rewards import RewardParams, staged_reward
@@ -82,7 +83,10 @@ class PegInHoleEnv(gym.Env):
             hole_depth=cfg.hole_depth, inner_half=cfg.peg_half_width + cfg.clearance,
             success_tolerance=cfg.success_tolerance)
         self._filter = LowPass(cfg.ft_cutoff_hz, 1.0 / cfg.physics_dt)
-        self._contact_geoms = np.concatenate((self.sim.hole_geom_ids, [self.sim.table_geom_id]))
+        self._is_peg = np.zeros(self.model.ngeom, bool)
+        self._is_peg[self.sim.peg_geom_ids] = True
+        self._is_obstacle = np.zeros(self.model.ngeom, bool)  # the hole's walls and the table
+        self._is_obstacle[np.concatenate((self.sim.hole_geom_ids, [self.sim.table_geom_id]))] = True
         self._arm_q = self.sim.arm_qpos_idx
         self._arm_v = self.sim.arm_qvel_idx
         lo = np.array([*(np.asarray(cfg.grid_center) - cfg.grid_extent / 2 - 0.12),
@@ -161,10 +165,10 @@ class PegInHoleEnv(gym.Env):
         mujoco.mju_quat2Vel(rotvec, quat, 1.0)
         command = np.concatenate(((target - tip) / scale,
                                   np.clip(rotvec / ORI_OUTPUT_MAX, -1, 1), [-1.0]))
-        self.sim.ft_samples = []
+        self.sim.take_ft_samples()  # drop samples from before this step (reset)
         self._make_default_context_current()
         obs_rs = self.sim.step(command)[0]
-        self._ft = self._filter(np.asarray(self.sim.ft_samples))
+        self._ft = self._filter(self.sim.take_ft_samples())
         self._t += 1
         self._last_action = a.astype(np.float32)
         self._update_image(obs_rs)
@@ -206,9 +210,8 @@ class PegInHoleEnv(gym.Env):
         if n == 0:
             return False
         g1, g2 = self.data.contact.geom1[:n], self.data.contact.geom2[:n]
-        peg = self.sim.peg_geom_ids
-        hit = (np.isin(g1, peg) & np.isin(g2, self._contact_geoms)) | (
-            np.isin(g2, peg) & np.isin(g1, self._contact_geoms))
+        peg, obstacle = self._is_peg, self._is_obstacle
+        hit = (peg[g1] & obstacle[g2]) | (peg[g2] & obstacle[g1])
         return bool(hit.any())
 
     def peg_in_hand_offset(self) -> float:
@@ -269,10 +272,7 @@ class PegInHoleEnv(gym.Env):
             ctx.gl_ctx.make_current()
 
     def _disable_observables(self, keep_camera: bool) -> None:
-        for name, obs in self.sim._observables.items():
-            keep = keep_camera and name == f"{WRIST_CAMERA}_image"
-            obs.set_enabled(keep)
-            obs.set_active(keep)
+        self.sim.keep_observables((f"{WRIST_CAMERA}_image",) if keep_camera else ())
 
     def _update_image(self, obs_rs: Any) -> None:
         if not self.config.camera:

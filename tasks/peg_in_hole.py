@@ -11,11 +11,11 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
-from repbench_tasks.config import PegInHoleConfig
 
 from repbench.dataset import Dataset
 from repbench.errors import ConfigError
 from repbench.task import Policy, Task
+from repbench_tasks.config import PegInHoleConfig
 
 GYM_ID = "repbench/PegInHole-v0"
 
@@ -88,10 +88,10 @@ class PegInHoleTask(Task):
         :func:`repbench_tasks.collection.collect`. The contact share is in the metadata."""
         import time
 
-        from repbench_tasks.collection import collect
-
         from repbench.store import library_versions
+        from repbench_tasks.collection import check_collect_args, collect
 
+        check_collect_args(kind, n_episodes, steps_per_episode, policy)  # before the env build
         env = self.make_env(horizon=max(steps_per_episode, 1))
         t0 = time.perf_counter()
         try:

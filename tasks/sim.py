@@ -3,8 +3,9 @@
 The peg is a box welded into the gripper's ``eef`` body (below the wrist force/torque site, so the
 sensor feels every contact on it); it cannot slip. The hole is a fixed ``CompositeObject`` of four
 box walls on the table whose planar position is changed per episode through ``model.body_pos``
-(a soft reset, no XML rebuild). Physics runs at robosuite's 500 Hz; the wrist force/torque sensor is
-sampled at every physics substep for the low-pass filter (see :mod:`repbench_tasks.sensing`).
+(a soft reset, no XML rebuild). Physics runs at ``physics_dt`` (200 Hz by default); the wrist
+force/torque sensor is sampled at every physics substep for the low-pass filter (see
+:mod:`repbench_tasks.sensing`).
 """
 
 from __future__ import annotations
@@ -13,13 +14,14 @@ import xml.etree.ElementTree as ET
 from typing import Any
 
 import numpy as np
-from repbench_tasks.sensing import weight_wrench
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.models.arenas import TableArena
 from robosuite.models.objects import BoxObject
 from robosuite.models.objects.generated_objects import CompositeObject
 from robosuite.models.tasks import ManipulationTask
 from robosuite.utils.mjcf_utils import array_to_string, find_elements
+
+from repbench_tasks.sensing import weight_wrench
 
 TABLE_FULL_SIZE = (0.8, 0.8, 0.05)
 TABLE_OFFSET = (0.0, 0.0, 0.8)
@@ -88,7 +90,11 @@ class PegInHoleSim(ManipulationEnv):
         self.table_full_size = TABLE_FULL_SIZE
         self.table_offset = np.array(TABLE_OFFSET)
         self.hole_xy = np.zeros(2)
-        self.ft_samples: list[np.ndarray] = []
+        self._live_observables: tuple[Any, ...] | None = None
+        # Per-substep wrist samples, filled in place: raw [force, torque] (6), the ft site's
+        # rotation (9) and the subtree's centre of mass relative to the site (3).
+        self._ft_buf = np.zeros((round(1.0 / (20.0 * physics_dt)) + 1, 18))
+        self._n_ft = 0
         controller = {
             "type": "BASIC",
             "body_parts": {"right": {
@@ -165,12 +171,21 @@ class PegInHoleSim(ManipulationEnv):
         self.eef_site_id = m.site_name2id("gripper0_right_grip_site")
         self.arm_qpos_idx = np.array(robot._ref_joint_pos_indexes)
         self.arm_qvel_idx = np.array(robot._ref_joint_vel_indexes)
+        # Constant per model: the hand-and-peg mass and the force that holds it up (world).
+        self.ft_mass = float(m.body_subtreemass[self.ft_body_id])
+        self.ft_support = -self.ft_mass * np.array(m.opt.gravity, dtype=np.float64)
+        self._action_dim = self.action_dim  # robosuite recomputes it from the limits per call
+        # Actuator index arrays and control ranges per controlled part (robot.control's clip).
+        self._ctrl_parts = {
+            part: (np.asarray(idx), m.actuator_ctrlrange[idx, 0].copy(),
+                   m.actuator_ctrlrange[idx, 1].copy())
+            for part, idx in robot._ref_actuators_indexes_dict.items()}
 
     def _reset_internal(self) -> None:
         super()._reset_internal()
         if hasattr(self, "hole_body_id"):
             self.set_hole_xy(self.hole_xy)
-        self.ft_samples = []
+        self._n_ft = 0
 
     # -- task hooks (the gymnasium wrapper computes rewards) -----------------------------------
     def reward(self, action: Any = None) -> float:
@@ -180,8 +195,45 @@ class PegInHoleSim(ManipulationEnv):
         return False
 
     def _pre_action(self, action: Any, policy_step: bool = False) -> None:
-        super()._pre_action(action, policy_step)
-        self.ft_samples.append(self.compensated_ft())
+        # What robot.control does (robosuite 1.5.2, fixed-base robot): on a policy step set the
+        # new controller goal; every substep run the controllers on the current state, clip the
+        # torques to the actuators' ranges and write them. Left out: its per-substep action
+        # checks and duplicate update_state, and its per-step history buffers (recent_qpos,
+        # recent_ee_* ...), which only robosuite's observables read and repbench disables.
+        # tests/tasks: the rollout equals robosuite's own path bit for bit.
+        robot = self.robots[0]
+        composite = robot.composite_controller
+        if policy_step:
+            if len(action) != self._action_dim:
+                raise ValueError(f"robosuite action has {len(action)} values, expected "
+                                 f"{self._action_dim}")
+            composite.update_state()
+            composite.set_goal(action)
+        applied = composite.run_controller(robot._enabled_parts)
+        ctrl = self.sim.data._data.ctrl
+        for part, torques in applied.items():
+            idx, lo, hi = self._ctrl_parts[part]
+            ctrl[idx] = np.clip(torques, lo, hi)
+        self._record_ft()
+
+    def _update_observables(self, force: bool = False) -> None:
+        # Called every substep: skip the observables repbench has disabled (all but the wrist
+        # camera of the default-rendering mode).
+        live = self._live_observables
+        if live is None:
+            super()._update_observables(force)
+            return
+        for observable in live:
+            observable.update(timestep=self.model_timestep, obs_cache=self._obs_cache,
+                              force=force)
+
+    def keep_observables(self, names: tuple[str, ...]) -> None:
+        """Enable only the robosuite observables ``names``; the others are never computed."""
+        for name, observable in self._observables.items():
+            keep = name in names
+            observable.set_enabled(keep)
+            observable.set_active(keep)
+        self._live_observables = tuple(self._observables[n] for n in names)
 
     # -- helpers -------------------------------------------------------------------------------
     def raw_ft(self) -> np.ndarray:
@@ -195,8 +247,29 @@ class PegInHoleSim(ManipulationEnv):
         m, d = self.sim.model._model, self.sim.data._data
         rot = d.site_xmat[self.ft_site_id].reshape(3, 3)
         weight = weight_wrench(rot, d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id],
-                               float(m.body_subtreemass[self.ft_body_id]), m.opt.gravity)
+                               self.ft_mass, m.opt.gravity)
         return self.raw_ft() - weight
+
+    def _record_ft(self) -> None:
+        # In-place copies only (a few microseconds); the weight is removed once per control step
+        # for all substeps together in take_ft_samples.
+        d = self.sim.data._data
+        row = self._ft_buf[self._n_ft]
+        row[0:3] = d.sensordata[self.force_adr:self.force_adr + 3]
+        row[3:6] = d.sensordata[self.torque_adr:self.torque_adr + 3]
+        row[6:15] = d.site_xmat[self.ft_site_id]
+        np.subtract(d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id], out=row[15:18])
+        self._n_ft = min(self._n_ft + 1, len(self._ft_buf) - 1)
+
+    def take_ft_samples(self) -> np.ndarray:
+        """The compensated [force, torque] samples of the substeps since the last call, [n, 6]
+        (equal to :meth:`compensated_ft` at each substep), and start a new batch."""
+        buf = self._ft_buf[:self._n_ft]
+        self._n_ft = 0
+        rot = buf[:, 6:15].reshape(-1, 3, 3)
+        weight = weight_wrench(rot, buf[:, 15:18], np.zeros(3), self.ft_mass,
+                               self.sim.model._model.opt.gravity)
+        return buf[:, :6] - weight
 
     def set_hole_xy(self, xy: np.ndarray) -> None:
         """Move the fixed hole (soft reset: ``model.body_pos``, then kinematics)."""
