@@ -18,6 +18,7 @@ Write your own in a few lines::
             return self
 
         def encode(self, observations):
+            self.check_is_fitted()
             img = self.check_observations(observations)["image"]
             return (img.reshape(len(img), -1, 3).mean(1) * self.scale).astype(np.float32)
 

@@ -204,11 +204,23 @@ _IMPLEMENTATIONS: dict[str, Callable[[StageSpec, Store, Any], None]] = {
 
 
 def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) -> dict[str, Any]:
-    """Run ``spec`` unless its artifact exists; return a small status record."""
-    if torch_threads is not None:
-        import torch
+    """Run ``spec`` unless its artifact exists; return a small status record.
 
-        torch.set_num_threads(torch_threads)
+    ``torch_threads`` (set by the pool and Ray executors) pins torch *and* the BLAS/OpenMP
+    pools to that many threads: workers then do not oversubscribe the cores, and every executor
+    sums in the same order, so deterministic stages give bit-identical results everywhere.
+    """
+    if torch_threads is None:
+        return _execute(spec, store_root)
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    torch.set_num_threads(torch_threads)
+    with threadpool_limits(limits=torch_threads):
+        return _execute(spec, store_root)
+
+
+def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     store = Store(store_root)
     key = spec.key
     start = time.time()

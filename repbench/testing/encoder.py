@@ -142,7 +142,10 @@ def check_encoder(plugin: str | type[Encoder] | Encoder, dataset: Dataset | None
         import torch
 
         torch.load(path, map_location="cpu", weights_only=True)  # no code from the file
-        for loader in (Encoder.load, cls.load):
+        # the generic Encoder.load finds the class by its "module:Name" reference, which a class
+        # defined in a script, notebook or exec() does not have; the runner needs it importable
+        loaders = [Encoder.load, cls.load] if _importable(cls) else [cls.load]
+        for loader in loaders:
             loaded = loader(path)
             assert type(loaded) is cls, f"{name}: load returned a {type(loaded).__name__}"
             assert _same(loaded.get_params(), enc.get_params()), (
@@ -191,3 +194,16 @@ def _same(a: Any, b: Any) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return bool(np.array_equal(a, b))
     return bool(a == b) and type(a) is type(b)
+
+
+def _importable(cls: type) -> bool:
+    """Whether ``cls`` can be found again from its ``module:qualname`` reference."""
+    from repbench.errors import PluginError
+    from repbench.registry import import_reference
+
+    if cls.__module__ in ("__main__", "builtins"):
+        return False
+    try:
+        return import_reference(f"{cls.__module__}:{cls.__qualname__}") is cls
+    except PluginError:
+        return False
