@@ -22,6 +22,7 @@ variants with a temporal term train on such pairs and apply the VAE terms to bot
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 from collections.abc import Mapping
@@ -474,139 +475,47 @@ def _fmt(terms: Mapping[str, torch.Tensor]) -> str:
 # Each lists its parameters explicitly so that get_params() rebuilds it (scikit-learn style).
 
 
-class VAE(MultimodalVAE):
-    """Multimodal VAE reconstructing image and force (KL weight 10)."""
+def _variant(name: str, doc: str, **defaults: float) -> type[MultimodalVAE]:
+    """A named :class:`MultimodalVAE` whose defaults are the paper's weights for one variant.
 
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 10.0, recon_weight: float = 1e-4,
-                 ft_recon_scale: float = 255.0, seed: int = 0, device: str = "auto",
-                 progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, ft_recon_scale=ft_recon_scale, seed=seed,
-                         device=device, progress=progress)
+    The generated ``__init__`` carries ``MultimodalVAE``'s full signature with these defaults,
+    so ``get_params()`` sees every hyperparameter and ``type(e)(**e.get_params())`` rebuilds it.
+    """
+    base = inspect.signature(MultimodalVAE.__init__)
+    unknown = set(defaults) - set(base.parameters)
+    if unknown:
+        raise TypeError(f"{name}: MultimodalVAE has no parameters {sorted(unknown)}")
+    signature = base.replace(parameters=[p.replace(default=defaults.get(p.name, p.default))
+                                         for p in base.parameters.values()])
 
+    def __init__(self: MultimodalVAE, *args: Any, **kwargs: Any) -> None:
+        bound = signature.bind(self, *args, **kwargs)
+        bound.apply_defaults()
+        params = dict(bound.arguments)
+        del params["self"]
+        MultimodalVAE.__init__(self, **params)
 
-class VAELowKL(MultimodalVAE):
-    """Multimodal VAE with the low KL weight 0.1."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 0.1, recon_weight: float = 1e-4,
-                 ft_recon_scale: float = 255.0, seed: int = 0, device: str = "auto",
-                 progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, ft_recon_scale=ft_recon_scale, seed=seed,
-                         device=device, progress=progress)
-
-
-class SuccessVAE(MultimodalVAE):
-    """VAE plus a success classifier on z (2 FC + softmax, weight 0.1); KL weight 10."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 10.0, recon_weight: float = 1e-4,
-                 success_weight: float = 0.1, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, success_weight=success_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
+    __init__.__signature__ = signature  # type: ignore[attr-defined]
+    return type(name, (MultimodalVAE,), {"__init__": __init__, "__doc__": doc,
+                                          "__module__": __name__, "__qualname__": name})
 
 
-class SuccessVAELowKL(MultimodalVAE):
-    """VAE plus a success classifier (weight 0.1); KL weight 0.1."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 0.1, recon_weight: float = 1e-4,
-                 success_weight: float = 0.1, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, success_weight=success_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
-
-
-class PredZVAE(MultimodalVAE):
-    """VAE plus a next-latent predictor from z_n and a_n (hidden 64, weight 1.0); KL weight 10."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 10.0, recon_weight: float = 1e-4,
-                 pred_z_weight: float = 1.0, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, pred_z_weight=pred_z_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
-
-
-class PredZVAELowKL(MultimodalVAE):
-    """VAE plus a next-latent predictor (weight 1.0); KL weight 0.1."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 0.1, recon_weight: float = 1e-4,
-                 pred_z_weight: float = 1.0, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, pred_z_weight=pred_z_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
-
-
-class PredImVAE(MultimodalVAE):
-    """VAE plus next-image prediction from z_n and a_n (weight 1e-4); KL weight 10."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 10.0, recon_weight: float = 1e-4,
-                 pred_im_weight: float = 1e-4, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, pred_im_weight=pred_im_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
-
-
-class PredImVAELowKL(MultimodalVAE):
-    """VAE plus next-image prediction (weight 1e-4); KL weight 0.1."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 0.1, recon_weight: float = 1e-4,
-                 pred_im_weight: float = 1e-4, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, pred_im_weight=pred_im_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
-
-
-class SmoothVAE(MultimodalVAE):
-    """VAE plus the smoothness penalty ‖μ_{n+1} − μ_n‖ (weight 500); KL weight 10."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 10.0, recon_weight: float = 1e-4,
-                 smooth_weight: float = 500.0, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, smooth_weight=smooth_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
-
-
-class SmoothVAELowKL(MultimodalVAE):
-    """VAE plus the smoothness penalty with the paper's low-KL weight 0.1; KL weight 0.1."""
-
-    def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
-                 learning_rate: float = 1e-3, kl_weight: float = 0.1, recon_weight: float = 1e-4,
-                 smooth_weight: float = 0.1, ft_recon_scale: float = 255.0, seed: int = 0,
-                 device: str = "auto", progress: bool = True) -> None:
-        super().__init__(latent_dim=latent_dim, epochs=epochs, batch_size=batch_size,
-                         learning_rate=learning_rate, kl_weight=kl_weight,
-                         recon_weight=recon_weight, smooth_weight=smooth_weight,
-                         ft_recon_scale=ft_recon_scale, seed=seed, device=device,
-                         progress=progress)
+# The paper's ten encoders (§IV and appendix): KL weight 10 ("standard") or 0.1 ("low KL").
+VAE = _variant("VAE", "Multimodal VAE reconstructing image and force (KL weight 10).")
+VAELowKL = _variant("VAELowKL", "Multimodal VAE with the low KL weight 0.1.", kl_weight=0.1)
+SuccessVAE = _variant("SuccessVAE", "VAE plus a success classifier (weight 0.1); KL weight 10.",
+                      success_weight=0.1)
+SuccessVAELowKL = _variant("SuccessVAELowKL", "VAE plus a success classifier (weight 0.1); "
+                           "KL weight 0.1.", kl_weight=0.1, success_weight=0.1)
+PredZVAE = _variant("PredZVAE", "VAE plus a next-latent predictor (weight 1.0); KL weight 10.",
+                    pred_z_weight=1.0)
+PredZVAELowKL = _variant("PredZVAELowKL", "VAE plus a next-latent predictor (weight 1.0); "
+                         "KL weight 0.1.", kl_weight=0.1, pred_z_weight=1.0)
+PredImVAE = _variant("PredImVAE", "VAE plus next-image prediction from z_n and a_n "
+                     "(weight 1e-4); KL weight 10.", pred_im_weight=1e-4)
+PredImVAELowKL = _variant("PredImVAELowKL", "VAE plus next-image prediction (weight 1e-4); "
+                          "KL weight 0.1.", kl_weight=0.1, pred_im_weight=1e-4)
+SmoothVAE = _variant("SmoothVAE", "VAE plus the smoothness penalty ‖μ_{n+1} − μ_n‖ "
+                     "(weight 500); KL weight 10.", smooth_weight=500.0)
+SmoothVAELowKL = _variant("SmoothVAELowKL", "VAE plus the smoothness penalty with the paper's "
+                          "low-KL weight 0.1; KL weight 0.1.", kl_weight=0.1, smooth_weight=0.1)
