@@ -100,7 +100,7 @@ def test_mine_gaussian_closed_form() -> None:
     xy = rng.multivariate_normal(np.zeros(4), COV4, 4000)
     ep = np.repeat(np.arange(40), 100)
     res = mine(xy[:, :2], xy[:, 2:], ep, 0, steps=3000, learning_rate=1e-3, n_bootstrap=0)
-    # MINE is a lower bound; measured 0.27 for a true 0.297
+    # true 0.297; measured 0.254, 0.233, 0.333 for data seeds 0, 1, 2 (this test uses seed 0)
     assert gaussian_mi(COV4, 2) - 0.1 < res.value < gaussian_mi(COV4, 2) + 0.05
 
 
