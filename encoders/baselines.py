@@ -94,6 +94,9 @@ class RandomEncoder(MultimodalVAE):
     Fitting only computes the input normalization statistics; ``encode`` returns μ_z.
     """
 
+    #: its decoder is untrained too: no reconstruction figure for the leaderboard
+    save_reconstruction_figure = None
+
     def __init__(self, latent_dim: int = 16, seed: int = 0, device: str = "auto") -> None:
         super().__init__(latent_dim=latent_dim, epochs=0, seed=seed, device=device,
                          progress=False)

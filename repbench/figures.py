@@ -148,6 +148,10 @@ def smoothness_hist(res: Any, path: Path) -> Path | None:
         counts = np.asarray(h["counts"], dtype=float)
         dens = counts / max(1.0, counts.sum() + h.get("overflow", 0))
         ax.stairs(dens, edges, color=colors[enc], label=enc)
+    q95 = [float(x["quantiles"]["0.95"]) for x in extras.values()
+           if isinstance(x.get("quantiles"), dict) and "0.95" in x["quantiles"]]
+    if q95:  # the far tail of one encoder would squash every histogram
+        ax.set_xlim(0, 1.5 * max(q95))
     ax.set_xlabel("‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ (each standardized)")
     ax.set_ylabel("fraction of pairs")
     ax.set_title("Encoder smoothness", fontsize=10)
