@@ -179,6 +179,8 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)
+    for stale in (out_dir / "figures").glob("*.png"):  # figures of an earlier write
+        stale.unlink()
     figures = make_figures(res, met, out_dir / "figures")
     (out_dir / "index.html").write_text(render_html(res, enc, met, figures), encoding="utf-8")
     return out_dir
