@@ -20,6 +20,7 @@ import pandas as pd
 
 from repbench.correlation import METHODS, correlate, mean_ci
 from repbench.plan import Plan
+from repbench.stages import StageSpec
 from repbench.store import Store
 
 
@@ -42,13 +43,20 @@ def collect_results(plan: Plan, store: Store) -> Results:
     res = Results(plan.suite)
     metas: list[dict[str, Any]] = []
     directions: dict[str, bool] = {}
+
+    def fetch(spec: StageSpec) -> Any:
+        """The stage's artifact (its metadata kept for provenance), or None, noted missing."""
+        art = store.get(spec.kind, spec.key)
+        if art is None:
+            res.missing.append(spec.label)
+        else:
+            metas.append(art.meta)
+        return art
+
     for tp in plan.tasks:
         for enc_name, spec in tp.encoders.items():
-            art = store.get(spec.kind, spec.key)
-            if art is None:
-                res.missing.append(spec.label)
+            if (art := fetch(spec)) is None:
                 continue
-            metas.append(art.meta)
             info = art.read_json()
             res.encoder_rows.append({"task": tp.task, "encoder": enc_name,
                                      "latent_dim": info.get("latent_dim"),
@@ -57,21 +65,15 @@ def collect_results(plan: Plan, store: Store) -> Results:
             if png.is_file():
                 res.figures_from_store[f"reconstructions {enc_name}"] = png
         for (enc_name, metric_name), spec in tp.metrics.items():
-            art = store.get(spec.kind, spec.key)
-            if art is None:
-                res.missing.append(spec.label)
+            if (art := fetch(spec)) is None:
                 continue
-            metas.append(art.meta)
             d = art.read_json()
             directions[metric_name] = bool(d["higher_is_better"])
             res.metric_rows.append({"task": tp.task, "encoder": enc_name, "metric": metric_name,
                                     **d})
         for (enc_name, agent, seed), spec in tp.rl.items():
-            art = store.get(spec.kind, spec.key)
-            if art is None:
-                res.missing.append(spec.label)
+            if (art := fetch(spec)) is None:
                 continue
-            metas.append(art.meta)
             res.rl_rows.append({"task": tp.task, "encoder": enc_name, "agent": agent,
                                 "seed": seed, **art.read_json()})
         diag = store.get(tp.diagnostics.kind, tp.diagnostics.key)
