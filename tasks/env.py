@@ -80,7 +80,7 @@ class PegInHoleEnv(gym.Env):
         self.grid = cfg.grid_positions()
         self.tip_in_site = cfg.peg_length - 0.02  # tip distance below the grip site (m)
         self.reward_params = RewardParams(
-            hole_depth=cfg.hole_depth, inner_half=cfg.peg_half_width + cfg.clearance,
+            hole_depth=cfg.hole_depth, clearance=cfg.clearance,
             success_tolerance=cfg.success_tolerance)
         self._filter = LowPass(cfg.ft_cutoff_hz, 1.0 / cfg.physics_dt)
         self._is_peg = np.zeros(self.model.ngeom, bool)

@@ -8,7 +8,7 @@ from scipy import signal
 
 from repbench.errors import ConfigError
 from repbench_tasks.peg_in_hole import PegInHoleTask
-from repbench_tasks.rewards import RewardParams, staged_reward
+from repbench_tasks.rewards import RewardParams, stage_of, staged_reward
 from repbench_tasks.sensing import LowPass, weight_wrench
 
 
@@ -46,7 +46,7 @@ def test_params_roundtrip_and_grid() -> None:
 
 
 def test_reward_stages_increase_along_an_insertion() -> None:
-    p = RewardParams(hole_depth=0.04, inner_half=0.014)
+    p = RewardParams(hole_depth=0.04, clearance=0.002)
     far, _ = staged_reward(np.array([0.1, 0.05, 0.1]), p)
     near, _ = staged_reward(np.array([0.02, 0.0, 0.03]), p)
     align, _ = staged_reward(np.array([0.002, 0.0, 0.01]), p)
@@ -56,6 +56,17 @@ def test_reward_stages_increase_along_an_insertion() -> None:
     assert 0 < far < near <= 1 < align <= 2 < 4 <= shallow < deep < 6 < done == 10 and ok
     # below the opening but outside it (beside the hole) is not insertion
     assert staged_reward(np.array([0.05, 0.0, -0.02]), p)[0] < 1
+
+
+@pytest.mark.parametrize("offset_mm", [4.5, 8.0, 13.0])
+def test_pressing_on_the_rim_is_not_insertion(offset_mm) -> None:
+    """A peg pressed onto a wall top sinks ~0.3 mm into it (soft contact): still outside."""
+    p = RewardParams(hole_depth=0.04, clearance=0.002)
+    s = np.array([offset_mm / 1000, 0.0, -0.0004])
+    stage, _ = stage_of(s, p)
+    assert stage in ("align", "reach") and staged_reward(s, p)[0] <= 2
+    # entering with play (within the clearance, tilted or pressed on a side) is insertion
+    assert stage_of(np.array([0.0025, -0.001, -0.005]), p)[0] == "insert"
 
 
 def test_lowpass_in_chunks_equals_scipy_on_the_whole_signal() -> None:

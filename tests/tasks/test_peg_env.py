@@ -157,6 +157,26 @@ def test_scripted_policy_inserts_the_peg(physics_env: PegInHoleEnv) -> None:
     assert rewards[-1] == 10.0 and max(rewards[:-1]) < 10.0
 
 
+def test_pressing_down_on_the_rim_pays_no_insertion_reward(physics_env: PegInHoleEnv) -> None:
+    """The exploit SAC found: push the peg down hard on the hole's edge. Soft contacts let the
+    tip sink a fraction of a millimetre below the opening's plane; that is not "inside"."""
+    physics_env.reset(seed=4, options={"start": "above"})
+    target = np.array([-0.014, -0.002])  # on the rim; the peg slides to the edge and sticks
+    rewards, heights = [], []
+    for i in range(60):
+        off = physics_env.tip_offset()
+        a = np.zeros(3)
+        a[:2] = np.clip((target - off[:2]) / 0.02, -1, 1)
+        a[2] = -1.0 if i > 10 else 0.0
+        _, r, _, _, info = physics_env.step(a)
+        rewards.append(r)
+        heights.append(physics_env.tip_offset()[2])
+        assert not info["is_success"]
+    # measured: the tip sinks 0.2 mm below the opening (the old rule paid 4/step for 40 steps)
+    assert -0.002 < min(heights) < 0.0, f"lowest tip height {min(heights)}"
+    assert max(rewards) < 4.0 and max(rewards[20:]) > 1.0  # aligned above, never inserted
+
+
 def test_wrist_image_upright_and_culled_geoms_never_seen(env: PegInHoleEnv) -> None:
     renderer: WristRenderer = env._renderer
     hidden = set(unseen_geom_ids(env.model).tolist())
