@@ -8,7 +8,9 @@ the paper's appendix (two hidden layers of 96/128, Adam 1e-3/3e-3, replay 3e6, b
 A training run reads top to bottom in :meth:`SB3Agent.train_model`:
 
 1. build the encoded training environment(s) (``n_envs`` > 1: one process each);
-2. build the SB3 model (``device="auto"`` → CUDA when present);
+2. measure the features' mean and standard deviation on a short random-action rollout and
+   build the SB3 model, which standardizes its input with them (``device="auto"`` → CUDA
+   when present);
 3. ``model.learn`` with a callback that samples the learning curve on fixed episodes;
 4. evaluate the final policy on the fixed evaluation episodes (seeds ``10_000 + i``), the same
    hole positions and initial states for every encoder.
@@ -38,6 +40,9 @@ from repbench.task import Task
 
 #: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` for every encoder and agent.
 EVAL_SEED_BASE = 10_000
+#: The random-action rollout that measures feature statistics resets with seeds from here on
+#: (``+ 1000 * training seed``), apart from the evaluation episodes.
+NORMALIZE_SEED_BASE = 20_000
 
 
 def eval_seeds(n: int) -> list[int]:
@@ -149,8 +154,8 @@ class SB3Agent(Agent):
     def __init__(self, hidden_sizes: Sequence[int] = (128, 128), learning_rate: float = 1e-3,
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  learning_starts: int = 1000, gamma: float = 0.99, gradient_steps: int = -1,
-                 curve_episodes: int = 5, device: str = "auto", n_envs: int = 1,
-                 torch_threads: int | None = 1, progress: bool = True) -> None:
+                 curve_episodes: int = 5, normalize_steps: int = 500, device: str = "auto",
+                 n_envs: int = 1, torch_threads: int | None = 1, progress: bool = True) -> None:
         self.hidden_sizes = hidden_sizes
         self.learning_rate = learning_rate
         self.buffer_size = buffer_size
@@ -160,6 +165,7 @@ class SB3Agent(Agent):
         self.gamma = gamma
         self.gradient_steps = gradient_steps
         self.curve_episodes = curve_episodes
+        self.normalize_steps = normalize_steps
         self.device = device
         self.n_envs = n_envs
         self.torch_threads = torch_threads
@@ -195,6 +201,9 @@ class SB3Agent(Agent):
             raise self._fail("tau", "must be in (0, 1]")
         if not 0.0 <= self.gamma <= 1.0:
             raise self._fail("gamma", "must be in [0, 1]")
+        if not isinstance(self.normalize_steps, int) or self.normalize_steps < 0 or (
+                self.normalize_steps == 1):
+            raise self._fail("normalize_steps", "must be 0 (no standardization) or an int >= 2")
         if not isinstance(self.learning_starts, int) or self.learning_starts < 0:
             raise self._fail("learning_starts", "must be an int >= 0")
         if self.learning_starts >= train_steps:
@@ -226,11 +235,24 @@ class SB3Agent(Agent):
         venv = SubprocVecEnv([factory(i) for i in range(self.n_envs)])
         return batch_encoded_vec_env(venv, task, encoder)
 
-    def build_model(self, env: Any, seed: int, buffer_size: int | None = None) -> Any:
-        """The SB3 model for ``env`` (a flat-Box environment or VecEnv)."""
+    def build_model(self, env: Any, seed: int, buffer_size: int | None = None,
+                    feature_stats: tuple[np.ndarray, np.ndarray] | None = None) -> Any:
+        """The SB3 model for ``env`` (a flat-Box environment or VecEnv).
+
+        ``feature_stats`` (mean, std): standardize the observations inside the policy
+        (:class:`repbench.rl.normalization.StandardizedFeatures`).
+        """
         import stable_baselines3 as sb3
 
         cls = getattr(sb3, self.algorithm)
+        policy_kwargs: dict[str, Any] = {"net_arch": [int(h) for h in self.hidden_sizes]}
+        if feature_stats is not None:
+            from repbench.rl.normalization import StandardizedFeatures
+
+            mean, std = feature_stats
+            policy_kwargs["features_extractor_class"] = StandardizedFeatures
+            policy_kwargs["features_extractor_kwargs"] = {
+                "mean": [float(x) for x in mean], "std": [float(x) for x in std]}
         return cls(
             "MlpPolicy", env,
             learning_rate=float(self.learning_rate),
@@ -241,7 +263,7 @@ class SB3Agent(Agent):
             gamma=float(self.gamma),
             train_freq=1,
             gradient_steps=int(self.gradient_steps),
-            policy_kwargs={"net_arch": [int(h) for h in self.hidden_sizes]},
+            policy_kwargs=policy_kwargs,
             seed=seed,
             device=resolve_device(self.device),
             verbose=0,
@@ -298,7 +320,13 @@ class SB3Agent(Agent):
         try:
             # 2. model; the replay buffer never needs more than the run's transitions
             buffer = min(self.buffer_size, train_steps + self.n_envs)
-            model = self.build_model(env, seed, buffer_size=buffer)
+            stats = None
+            if self.normalize_steps:
+                from repbench.rl.normalization import feature_statistics
+
+                stats = feature_statistics(eval_env, self.normalize_steps,
+                                           NORMALIZE_SEED_BASE + 1000 * seed)
+            model = self.build_model(env, seed, buffer_size=buffer, feature_stats=stats)
             # 3. learn, sampling the learning curve
             n_curve = min(self.curve_episodes, eval_episodes)
             points = sorted({max(1, math.ceil(train_steps * (k + 1) / curve_points))
@@ -361,6 +389,9 @@ class SACAgent(SB3Agent):
         gamma: discount factor.
         gradient_steps: gradient steps per env step (-1: as many as transitions collected).
         curve_episodes: fixed episodes per learning-curve point.
+        normalize_steps: random-action steps that measure each feature's mean and standard
+            deviation before training; the policy standardizes its input with them (fixed,
+            saved with the model). 0 feeds raw features.
         device: ``"auto"`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
         n_envs: training environments; > 1 runs each in its own process (multi-core).
         torch_threads: torch intra-op threads while training (restored afterwards); 1 is
@@ -376,14 +407,14 @@ class SACAgent(SB3Agent):
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  ent_coef: str | float = "auto", learning_starts: int = 1000,
                  gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
-                 device: str = "auto", n_envs: int = 1, torch_threads: int | None = 1,
-                 progress: bool = True) -> None:
+                 normalize_steps: int = 500, device: str = "auto", n_envs: int = 1,
+                 torch_threads: int | None = 1, progress: bool = True) -> None:
         super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
                          buffer_size=buffer_size, batch_size=batch_size, tau=tau,
                          learning_starts=learning_starts, gamma=gamma,
                          gradient_steps=gradient_steps, curve_episodes=curve_episodes,
-                         device=device, n_envs=n_envs, torch_threads=torch_threads,
-                         progress=progress)
+                         normalize_steps=normalize_steps, device=device, n_envs=n_envs,
+                         torch_threads=torch_threads, progress=progress)
         self.ent_coef = ent_coef
 
     def validate(self, train_steps: int) -> None:
@@ -414,14 +445,14 @@ class DDPGAgent(SB3Agent):
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  action_noise: float = 0.25, learning_starts: int = 1000,
                  gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
-                 device: str = "auto", n_envs: int = 1, torch_threads: int | None = 1,
-                 progress: bool = True) -> None:
+                 normalize_steps: int = 500, device: str = "auto", n_envs: int = 1,
+                 torch_threads: int | None = 1, progress: bool = True) -> None:
         super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
                          buffer_size=buffer_size, batch_size=batch_size, tau=tau,
                          learning_starts=learning_starts, gamma=gamma,
                          gradient_steps=gradient_steps, curve_episodes=curve_episodes,
-                         device=device, n_envs=n_envs, torch_threads=torch_threads,
-                         progress=progress)
+                         normalize_steps=normalize_steps, device=device, n_envs=n_envs,
+                         torch_threads=torch_threads, progress=progress)
         self.action_noise = action_noise
 
     def validate(self, train_steps: int) -> None:
