@@ -43,7 +43,8 @@ class _TrueStateEncoder(Encoder):
 
 #: Defaults that make SB3-style agents learn within the tiny budget (applied only to the
 #: constructor arguments the agent actually has, and only when not given).
-_TINY_DEFAULTS = {"learning_starts": 40, "batch_size": 32, "progress": False}
+_TINY_DEFAULTS = {"learning_starts": 40, "batch_size": 32, "normalize_steps": 20,
+                  "progress": False}
 
 
 def _build(agent_or_name: Any, params: dict[str, Any]) -> Agent:
@@ -103,8 +104,8 @@ def check_agent(agent_or_name: Any, task: Task | None = None, encoder: Encoder |
         task: default :class:`repbench.testing.toy_task.ToyReachTask` (horizon 20).
         encoder: a fitted encoder; default: the true state (fitted on a tiny random dataset).
         train_steps, eval_episodes, curve_points, seed: the tiny budget.
-        params: constructor arguments (with a name or class); small ``learning_starts`` and
-            ``batch_size`` are used unless given.
+        params: constructor arguments (with a name or class); small ``learning_starts``,
+            ``batch_size`` and ``normalize_steps`` are used unless given.
 
     Raises:
         AssertionError: naming the first check that failed.
