@@ -26,6 +26,8 @@ def save_reconstruction_figure(encoder: MultimodalVAE, dataset: Dataset,
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    from repbench.figures import save_figure
+
     if not isinstance(encoder, MultimodalVAE):
         raise DataError(f"save_reconstruction_figure needs a VAE-family encoder with a decoder, "
                         f"got {type(encoder).__name__}")
@@ -61,8 +63,4 @@ def save_reconstruction_figure(encoder: MultimodalVAE, dataset: Dataset,
     fig.suptitle(f"{type(encoder).__name__} (latent {encoder.latent_dim}): reconstructions",
                  fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100, tight=False)

@@ -29,8 +29,12 @@ KINDS = ("tasks", "encoders", "metrics", "agents")
 
 StoreOpt = Annotated[
     Optional[Path],  # noqa: UP045 (typer needs Optional on 3.10)
-    typer.Option("--store", help="Stage-store directory [env REPBENCH_STORE; default "
-                 "~/.cache/repbench/store].", envvar="REPBENCH_STORE", show_default=False),
+    typer.Option("--store", help="Stage-store directory (env REPBENCH_STORE; default "
+                 "~/.cache/repbench/store).", envvar="REPBENCH_STORE", show_default=False),
+]
+OutOpt = Annotated[
+    Optional[Path],  # noqa: UP045
+    typer.Option("--out", help="Leaderboard folder (default: leaderboards/<suite>)."),
 ]
 
 
@@ -70,11 +74,10 @@ def run(
     suite: Annotated[str, typer.Option("--suite", "-s", help="smoke, quick, paper, or a "
                                        "suite TOML file.")] = "smoke",
     store: StoreOpt = None,
-    out: Annotated[Optional[Path], typer.Option(  # noqa: UP045
-        "--out", help="Leaderboard folder [default: leaderboards/<suite>].")] = None,
+    out: OutOpt = None,
     executor: Annotated[str, typer.Option(help="local or ray.")] = "local",
     workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
-        help="Parallel workers for the local executor [default: CPU count].")] = None,
+        help="Parallel workers for the local executor (default: CPU count).")] = None,
     ray_address: Annotated[Optional[str], typer.Option(  # noqa: UP045
         "--ray-address", help="Join this Ray cluster (e.g. 'auto'); otherwise start a local "
         "Ray instance.")] = None,
@@ -95,8 +98,7 @@ def leaderboard(
     suite: Annotated[str, typer.Option("--suite", "-s", help="Suite whose results to "
                                        "collect.")] = "smoke",
     store: StoreOpt = None,
-    out: Annotated[Optional[Path], typer.Option(  # noqa: UP045
-        "--out", help="Output folder [default: leaderboards/<suite>].")] = None,
+    out: OutOpt = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.runner import rebuild_leaderboards

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -29,9 +30,12 @@ def _colors(names: list[str]) -> dict[str, Any]:
     return {n: cmap(i % 20) for i, n in enumerate(sorted(names))}
 
 
-def _save(fig: Any, path: Path) -> Path:
+def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = 110, tight: bool = True
+                ) -> Path:
+    """Write ``fig`` to ``path`` (parent folders created), close it, return the path."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    fig.savefig(path, dpi=dpi, bbox_inches="tight" if tight else None)
     plt.close(fig)
     return path
 
@@ -81,7 +85,7 @@ def metric_vs_return(res: Any, path: Path, correlations: pd.DataFrame | None = N
                 ax.set_ylabel(f"{agent} eval return", fontsize=8)
     fig.suptitle("Metric vs RL return (one point per encoder; bars: CI)", fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def learning_curves(res: Any, path: Path) -> Path | None:
@@ -108,7 +112,7 @@ def learning_curves(res: Any, path: Path) -> Path | None:
         ax.tick_params(labelsize=7)
     axes[0][-1].legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _smoothness_extras(res: Any) -> dict[str, Mapping[str, Any]]:
@@ -132,7 +136,7 @@ def latent_distance(res: Any, path: Path) -> Path | None:
     ax.set_title("Latent distance against time offset", fontsize=10)
     ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def smoothness_hist(res: Any, path: Path) -> Path | None:
@@ -157,7 +161,7 @@ def smoothness_hist(res: Any, path: Path) -> Path | None:
     ax.set_title("Encoder smoothness", fontsize=10)
     ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def true_state_diffs(res: Any, path: Path) -> Path | None:
@@ -189,7 +193,7 @@ def true_state_diffs(res: Any, path: Path) -> Path | None:
         ax.tick_params(labelsize=7)
     fig.suptitle("True-state differences (paper Fig. 6a)", fontsize=9)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:

@@ -26,6 +26,8 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from repbench.figures import save_figure
+
     if n_frames < 1:
         raise ValueError(f"n_frames must be >= 1, got {n_frames}")
     steps = steps or max(n_frames * 4, 40)
@@ -58,8 +60,4 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
     fig.suptitle(f"{task.task_id}: wrist images, |F| beside each frame (seed {seed}"
                  + (f", contact share {share:.0%})" if share is not None else ")"), fontsize=9)
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out, tight=False)
