@@ -45,6 +45,19 @@ class Task(abc.ABC):
         """The robot-state part of an observation, appended to μ_z for the RL agent."""
         return np.asarray(observation[PROPRIO], dtype=np.float32)
 
+    def task_state(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The task-frame state of an observation batch (with ``true_state``), float32 [N, K].
+
+        The same information as z° for the task's goal, in the form a controller needs (for
+        the peg-in-hole: the peg tip's offset from the hole's opening and the tip velocity).
+        The ``oracle_task`` encoder exposes it, the privileged agent observes it, and metrics
+        that ask "how much of what the agent needs is decodable from z" predict it. Tasks
+        without one raise ``NotImplementedError``.
+        """
+        raise NotImplementedError(
+            f"task {getattr(self, 'task_id', type(self).__name__)} defines no task_state; "
+            "implement Task.task_state to use the privileged agent and task-frame metrics")
+
     def get_params(self) -> dict[str, Any]:
         import inspect
 

@@ -9,6 +9,8 @@ import numpy as np
 
 from repbench.errors import ConfigError
 
+#: Height of the table top in the world frame (m); the hole stands on it.
+TABLE_TOP_Z = 0.8
 #: Table half-size (robosuite's default table arena is 0.8 m x 0.8 m, centred at the origin).
 TABLE_HALF = 0.4
 #: Below this clearance MuJoCo's soft contacts (penetration ~0.3 mm under load) and the OSC

@@ -7,15 +7,23 @@ also registers the gymnasium id ``repbench/PegInHole-v0``.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
-from repbench.dataset import Dataset
-from repbench.errors import ConfigError
+from repbench.dataset import PROPRIO, TRUE_STATE, Dataset, as_observation_batch
+from repbench.errors import ConfigError, DataError
 from repbench.task import Policy, Task
-from repbench_tasks.config import PegInHoleConfig
+from repbench_tasks.config import TABLE_TOP_Z, PegInHoleConfig
+
+#: Layout of ``proprio``: joint positions (7), joint velocities (7), tip position (3), tip
+#: linear velocity (3).
+TIP_POSITION = slice(14, 17)
+TIP_VELOCITY = slice(17, 20)
+#: The hole's planar position in z°.
+HOLE_XY = slice(14, 16)
 
 GYM_ID = "repbench/PegInHole-v0"
 
@@ -80,6 +88,21 @@ class PegInHoleTask(Task):
     def true_state(self, env: Any) -> np.ndarray:
         """z° of ``env`` now: arm joint positions and velocities, hole planar position."""
         return env.unwrapped.true_state()
+
+    def task_state(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Peg tip minus the centre of the hole's opening (3, m) and tip velocity (3, m/s),
+        float32 [N, 6], from ``proprio`` and z° (the hole position) of an observation batch."""
+        batch = as_observation_batch(observations, (PROPRIO, TRUE_STATE), "PegInHole-v0")
+        proprio, z_true = batch[PROPRIO], batch[TRUE_STATE]
+        if proprio.ndim != 2 or proprio.shape[1] < TIP_VELOCITY.stop or z_true.ndim != 2 or (
+                z_true.shape[1] < HOLE_XY.stop):
+            raise DataError(f"PegInHole-v0 task_state: expected proprio [N, 20] and true_state "
+                            f"[N, 16], got {list(proprio.shape)} and {list(z_true.shape)}")
+        top = np.concatenate([z_true[:, HOLE_XY],
+                              np.full((len(z_true), 1), TABLE_TOP_Z + self.config().hole_depth)],
+                             axis=1)
+        offset = proprio[:, TIP_POSITION].astype(np.float64) - top
+        return np.concatenate([offset, proprio[:, TIP_VELOCITY]], axis=1).astype(np.float32)
 
     def collect(self, kind: str, *, n_episodes: int, steps_per_episode: int, seed: int,
                 policy: Policy | None = None, progress: bool = True) -> Dataset:

@@ -21,11 +21,11 @@ from robosuite.models.objects.generated_objects import CompositeObject
 from robosuite.models.tasks import ManipulationTask
 from robosuite.utils.mjcf_utils import array_to_string, find_elements
 
+from repbench_tasks.config import TABLE_TOP_Z
 from repbench_tasks.sensing import weight_wrench
 
 TABLE_FULL_SIZE = (0.8, 0.8, 0.05)
-TABLE_OFFSET = (0.0, 0.0, 0.8)
-TABLE_TOP_Z = TABLE_OFFSET[2]
+TABLE_OFFSET = (0.0, 0.0, TABLE_TOP_Z)
 
 #: Names of the robot's arm bodies whose visual geoms the wrist camera never sees.
 ARM_BODY_PREFIXES = ("robot0_link", "robot0_base", "mount0_", "fixed_mount0_")

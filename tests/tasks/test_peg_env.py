@@ -213,3 +213,25 @@ def test_default_rendering_shows_the_same_picture(task: PegInHoleTask, env: PegI
 def test_camera_off_gives_zero_images(physics_env: PegInHoleEnv) -> None:
     obs, _ = physics_env.reset(seed=0)
     assert not obs["image"].any()
+
+
+def test_task_state_is_the_tip_offset_and_velocity(env: PegInHoleEnv) -> None:
+    task = PegInHoleTask()
+    obs, info = env.reset(seed=3)
+    for _ in range(3):
+        obs, _, _, _, info = env.step(np.array([0.1, 0.2, -0.3], np.float32))
+    batch = {k: np.asarray(v)[None] for k, v in obs.items()}
+    batch["true_state"] = info["true_state"][None]
+    state = task.task_state(batch)
+    assert state.shape == (1, 6) and state.dtype == np.float32
+    np.testing.assert_allclose(state[0, :3], env.tip_offset(), atol=1e-5)
+    np.testing.assert_allclose(state[0, 3:], obs["proprio"][17:20])
+
+
+def test_task_state_names_missing_modality() -> None:
+    import pytest
+
+    from repbench.errors import DataError
+
+    with pytest.raises(DataError, match="true_state"):
+        PegInHoleTask().task_state({"proprio": np.zeros((2, 20), np.float32)})
