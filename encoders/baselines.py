@@ -20,7 +20,8 @@ from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError
 from repbench_encoders.vae import MultimodalVAE
 
-__all__ = ["OracleEncoder", "OracleTaskEncoder", "PCAEncoder", "ProprioOnlyEncoder", "RandomEncoder"]
+__all__ = ["OracleEncoder", "OracleTaskEncoder", "PCAEncoder", "ProprioOnlyEncoder",
+           "RandomEncoder"]
 
 
 def _safe_std(x: np.ndarray) -> np.ndarray:

@@ -61,7 +61,7 @@ def aggregate_seeds(per_seed: Mapping[str, Sequence[float]], *, reps: int = 2000
         np.random.set_state(saved)
     out: dict[str, dict[str, Any]] = {}
     for name, s in scores.items():
-        row: dict[str, Any] = {"n_seeds": int(len(s))}
+        row: dict[str, Any] = {"n_seeds": len(s)}
         for i, stat in enumerate(STATISTICS):
             row[stat] = float(point[name][i])
             row[f"{stat}_ci_low"] = float(interval[name][0, i])
