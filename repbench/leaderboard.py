@@ -1,7 +1,8 @@
 """Leaderboards are pure functions of stored results: plan → artifacts → tables → CSV/HTML.
 
 * ``encoders.csv`` — one row per task × encoder: every metric with its CI, and per agent the RL
-  return (mean and t-interval over seeds) and success rate.
+  return over seeds (mean and interquartile mean, each with a stratified-bootstrap 95 %
+  interval from rliable; seeds are the unit) and success rate.
 * ``metrics.csv`` — one row per task × agent × metric: Pearson, Spearman and Kendall between the
   (direction-adjusted) metric and the mean RL return across encoders, with bootstrap CIs and
   p-values — "which metric predicts RL performance".
@@ -18,7 +19,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repbench.correlation import METHODS, correlate, mean_ci
+from repbench.correlation import METHODS, correlate
+from repbench.rl.aggregate import aggregate_seeds
 from repbench.plan import Plan
 from repbench.stages import StageSpec
 from repbench.store import Store
@@ -125,11 +127,14 @@ def encoder_table(res: Results) -> pd.DataFrame:
     by: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for r in res.rl_rows:
         by.setdefault((r["task"], r["encoder"], r["agent"]), []).append(r)
+    aggregated = aggregate_seeds({f"{t}|{e}|{a}": [x["eval_return"] for x in runs]
+                                  for (t, e, a), runs in by.items()})
     for (task, enc, agent), runs in sorted(by.items()):
         row = rows.setdefault((task, enc), {"task": task, "encoder": enc})
-        mean, lo, hi = mean_ci([x["eval_return"] for x in runs])
-        row[f"{agent}_return"], row[f"{agent}_return_ci_low"], row[f"{agent}_return_ci_high"] = (
-            mean, lo, hi)
+        agg = aggregated[f"{task}|{enc}|{agent}"]
+        for stat, col in (("mean", f"{agent}_return"), ("iqm", f"{agent}_return_iqm")):
+            row[col], row[f"{col}_ci_low"], row[f"{col}_ci_high"] = (
+                agg[stat], agg[f"{stat}_ci_low"], agg[f"{stat}_ci_high"])
         row[f"{agent}_success"] = float(np.mean([x["eval_success_rate"] for x in runs]))
         row[f"{agent}_seeds"] = len(runs)
     df = pd.DataFrame(list(rows.values()))

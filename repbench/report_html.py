@@ -96,6 +96,27 @@ def _img(path: Path, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
+def _privileged_section(prov: dict[str, Any]) -> list[str]:
+    """The privileged agent (it collects the on-policy data and sets the ceiling)."""
+    rows = []
+    for label, info in sorted(prov.get("datasets", {}).items()):
+        if "eval_success_rate" in info:
+            rows.append(
+                f"<li>{html.escape(label)}: success {info['eval_success_rate']:.0%}, return "
+                f"{info.get('eval_return', float('nan')):.1f} on the fixed evaluation episodes "
+                f"(policy kept at step {info.get('extras', {}).get('kept_step')})</li>")
+        elif "contact_share" in info:
+            rows.append(
+                f"<li>{html.escape(label)}: {info.get('n_steps')} steps, success share "
+                f"{info.get('success_share', float('nan')):.1%}, contact share "
+                f"{info['contact_share']:.1%}</li>")
+    if not rows:
+        return []
+    return ["<h2>Privileged agent and its data</h2><p class='note'>SAC on the task-frame "
+            "state ⊕ robot state; it collects the on-policy dataset and sets the ceiling of "
+            "the returns above.</p><ul>", *rows, "</ul>"]
+
+
 def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
                 figures: dict[str, Path]) -> str:
     """The whole page as a string."""
@@ -119,9 +140,11 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         _table(met, "metrics"),
         "<h2>Which encoder is best?</h2>",
         "<p class='note'>One row per task × encoder: every metric with its confidence interval, "
-        "and per agent the evaluation return (mean and 95% t-interval over seeds) and success "
-        "rate.</p>",
+        "and per agent the evaluation return over seeds — mean and interquartile mean (IQM), "
+        "each with a stratified-bootstrap 95% interval (rliable; seeds are the unit of "
+        "inference) — and success rate on the fixed evaluation episodes.</p>",
         _table(encoders_df, "encoders"),
+        *_privileged_section(prov),
         "<h2>Figures</h2>",
     ]
     for name, path in figures.items():

@@ -100,26 +100,36 @@ def _run_dataset(spec: StageSpec, store: Store, w: Any) -> None:
 
         art = store.get(FULL_STATE, spec.inputs["policy"][1])
         assert art is not None
-        policy = load_policy(art.file("model.zip"), task, Encoder.load(art.file("oracle.pt")))
+        policy = load_policy(art.file("model.zip"), task,
+                             Encoder.load(art.file("privileged_encoder.pt")))
     ds = task.collect(cfg["kind"], n_episodes=cfg["n_episodes"],
                       steps_per_episode=cfg["steps_per_episode"], seed=cfg["seed"],
                       policy=policy, progress=False)
     ds.save(w.file("dataset.npz"))
     w.write_json({"n_steps": len(ds), "n_episodes": ds.n_episodes,
-                  "success_rate": float(ds.success.mean()), "metadata": ds.metadata})
+                  "success_rate": float(ds.success.mean()),
+                  **{k: ds.metadata[k] for k in ("success_share", "contact_share")
+                     if k in ds.metadata},
+                  "metadata": ds.metadata})
 
 
 def _run_full_state(spec: StageSpec, store: Store, w: Any) -> None:
-    from repbench.rl.full_state import save_policy, train_full_state_agent
+    from repbench.rl.full_state import (
+        fitted_privileged_encoder,
+        save_policy,
+        train_full_state_agent,
+    )
 
     cfg = spec.config
     task = _make_task(cfg)
     dataset = _load_dataset(store, spec.inputs["dataset"][1])
+    encoder = fitted_privileged_encoder(task, dataset, cfg["seed"], cfg["encoder"])
     policy, result = train_full_state_agent(
-        task, train_steps=cfg["train_steps"], seed=cfg["seed"], dataset=dataset,
-        eval_episodes=cfg["eval_episodes"], progress=False, **cfg["agent_params"])
+        task, train_steps=cfg["train_steps"], seed=cfg["seed"], encoder=encoder,
+        eval_episodes=cfg["eval_episodes"], curve_points=cfg["curve_points"], progress=False,
+        **cfg["agent_params"])
     save_policy(policy.model, w.file("model.zip"))
-    policy.encoder.save(w.file("oracle.pt"))
+    policy.encoder.save(w.file("privileged_encoder.pt"))
     w.write_json(result.to_dict())
 
 

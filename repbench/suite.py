@@ -51,8 +51,13 @@ class RLConfig(_Strict):
     eval_episodes: PositiveInt = Field(description="fixed evaluation episodes "
                                                    "(paper: 20k steps)")
     curve_points: PositiveInt = Field(default=5, description="learning-curve evaluations")
-    full_state_train_steps: PositiveInt = Field(description="steps for the full-state SAC agent "
+    full_state_train_steps: PositiveInt = Field(description="steps for the privileged SAC agent "
                                                             "that collects the on-policy dataset")
+    privileged_encoder: str = Field(default="oracle_task", description="what the privileged "
+                                    "agent observes beside the robot state")
+    privileged_params: dict[str, Any] = Field(
+        default_factory=dict, description="SAC parameters of the privileged agent, over "
+        "repbench.rl.full_state.PRIVILEGED_AGENT_PARAMS")
 
 
 class MetricsConfig(_Strict):
