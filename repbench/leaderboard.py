@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 from repbench.correlation import METHODS, correlate
-from repbench.rl.aggregate import aggregate_seeds
 from repbench.plan import Plan
+from repbench.rl.aggregate import aggregate_seeds
 from repbench.stages import StageSpec
 from repbench.store import Store
 
