@@ -119,6 +119,16 @@ class PCAEncoder(Encoder):
         self.image_size = image_size
         self.seed = seed
 
+    def check_params(self) -> None:
+        """latent_dim and image_size must be positive integers."""
+        name = type(self).__name__
+        if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
+            raise ConfigError(f"{name}: latent_dim must be a positive integer, "
+                              f"got {self.latent_dim!r}")
+        if not isinstance(self.image_size, (int, np.integer)) or self.image_size < 1:
+            raise ConfigError(f"{name}: image_size must be a positive integer, "
+                              f"got {self.image_size!r}")
+
     def _features(self, observations: Mapping[str, Any]) -> np.ndarray:
         batch = self.check_observations(observations)
         img = batch[IMAGE]
@@ -141,12 +151,7 @@ class PCAEncoder(Encoder):
         from sklearn.decomposition import PCA
 
         name = type(self).__name__
-        if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
-            raise ConfigError(f"{name}: latent_dim must be a positive integer, "
-                              f"got {self.latent_dim!r}")
-        if not isinstance(self.image_size, (int, np.integer)) or self.image_size < 1:
-            raise ConfigError(f"{name}: image_size must be a positive integer, "
-                              f"got {self.image_size!r}")
+        self.check_params()
         x = self._features(dataset.obs(with_true_state=False))
         if self.latent_dim > min(x.shape):
             raise ConfigError(

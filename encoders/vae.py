@@ -118,7 +118,8 @@ class MultimodalVAE(Encoder):
         """Whether a loss term needs pairs (n, n+1)."""
         return self.pred_z_weight > 0 or self.pred_im_weight > 0 or self.smooth_weight > 0
 
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
+        """Raise ConfigError for an invalid hyperparameter (also called at plan time)."""
         name = type(self).__name__
         if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
             raise ConfigError(f"{name}: latent_dim must be a positive integer, "
@@ -139,7 +140,7 @@ class MultimodalVAE(Encoder):
     # -- fitting -------------------------------------------------------------------------------
     def fit(self, dataset: Dataset) -> MultimodalVAE:
         """Train on ``dataset`` (image, ft, proprio, last_action; action and success labels)."""
-        self._check_params()
+        self.check_params()
         name = type(self).__name__
         for m in (IMAGE, FT, PROPRIO, LAST_ACTION):
             if m not in dataset.observations:

@@ -97,6 +97,14 @@ class Encoder(abc.ABC):
             setattr(self, key, value)
         return self
 
+    def check_params(self) -> None:  # noqa: B027 (a hook: the default accepts everything)
+        """Raise :class:`repbench.errors.ConfigError` for an invalid hyperparameter.
+
+        The planner calls it on a freshly constructed encoder, so a bad value in a suite file
+        fails before anything runs. The default accepts everything; override it (and call it
+        from ``fit``) when some values are invalid.
+        """
+
     @property
     def is_fitted(self) -> bool:
         return any(k.endswith("_") and not k.startswith("_") for k in vars(self))

@@ -14,9 +14,15 @@ results without recomputing.
 
 from __future__ import annotations
 
+import hashlib
+import inspect
+import json
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+from repbench.errors import ConfigError, RepbenchError
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.stages import (
     DATASET,
@@ -27,10 +33,6 @@ from repbench.stages import (
     METRIC,
     RL,
     StageSpec,
-    accepted_kwargs,
-    check_kwargs,
-    code_version,
-    jsonable_config,
 )
 from repbench.suite import Suite
 
@@ -71,6 +73,62 @@ class Plan:
         return list(out.values())
 
 
+# -- planning helpers ---------------------------------------------------------------------------
+
+def code_version(obj: Any) -> str:
+    """Short hash of the source file defining ``obj``: editing a plugin invalidates its results."""
+    try:
+        src = inspect.getsourcefile(obj if inspect.isclass(obj) or inspect.isfunction(obj)
+                                    else type(obj))
+        if getattr(obj, "fn", None) is not None:  # repbench.Metric wraps a function
+            src = inspect.getsourcefile(obj.fn)
+    except TypeError:
+        src = None
+    if not src or not Path(src).is_file():
+        return "unknown"
+    return hashlib.sha256(Path(src).read_bytes()).hexdigest()[:12]
+
+
+def accepted_kwargs(factory: Callable[..., Any], params: Mapping[str, Any]) -> dict[str, Any]:
+    """The subset of ``params`` that ``factory``'s signature accepts."""
+    sig = inspect.signature(factory)
+    if any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
+        return dict(params)
+    return {k: v for k, v in params.items() if k in sig.parameters}
+
+
+def check_kwargs(owner: str, factory: Callable[..., Any], params: Mapping[str, Any]) -> None:
+    """Raise ConfigError if ``params`` has keys ``factory`` does not accept."""
+    unknown = set(params) - set(accepted_kwargs(factory, params))
+    if unknown:
+        valid = [p for p in inspect.signature(factory).parameters if p not in ("self",)]
+        raise ConfigError(f"{owner}: unknown parameter(s) {sorted(unknown)}; valid: {valid}")
+
+
+def jsonable_config(cfg: Mapping[str, Any]) -> dict[str, Any]:
+    """Round-trip through JSON so configs hash identically wherever they were built."""
+    return json.loads(json.dumps(cfg, sort_keys=True))
+
+
+def construct_checked(suite: Suite, field_name: str, factory: Callable[..., Any],
+                      params: Mapping[str, Any], validate: Callable[[Any], None] | None = None
+                      ) -> Any:
+    """Build a plugin from its suite parameters now, so a bad value fails at plan time.
+
+    Constructors store and check hyperparameters only (scikit-learn style), so this is cheap.
+    A :class:`ConfigError` (or ``TypeError``/``ValueError``) from the constructor or from
+    ``validate(obj)`` becomes one ConfigError naming the suite file and the field.
+    """
+    try:
+        obj = factory(**params)
+        if validate is not None:
+            validate(obj)
+    except (RepbenchError, TypeError, ValueError) as exc:
+        raise ConfigError(f"suite {suite.source or suite.name}, field {field_name}: {exc}"
+                          ) from None
+    return obj
+
+
 def _ref(spec: StageSpec) -> tuple[str, str]:
     return (spec.kind, spec.key)
 
@@ -87,6 +145,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
     task_cls = tasks.get(task_name)
     task_params = suite.task_params.get(task_name, {})
     check_kwargs(f"task_params.{task_name}", task_cls, task_params)
+    construct_checked(suite, f"task_params.{task_name!r}", task_cls, task_params)
     task_cfg = {"task": task_name, "task_params": task_params, "code": code_version(task_cls)}
     ds = suite.dataset
 
@@ -99,6 +158,9 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
     if ds.on_policy_episodes > 0:
         sac_cls = agents.get(FULL_STATE_AGENT)
         sac_params = suite.agent_params.get(FULL_STATE_AGENT, {})
+        check_kwargs(f"agent_params.{FULL_STATE_AGENT}", sac_cls, sac_params)
+        construct_checked(suite, f"agent_params.{FULL_STATE_AGENT}", sac_cls, sac_params,
+                          _agent_validator(suite.rl.full_state_train_steps))
         full_state = StageSpec(FULL_STATE, jsonable_config({
             **task_cfg, "train_steps": suite.rl.full_state_train_steps, "seed": ds.seed,
             "eval_episodes": suite.rl.eval_episodes, "agent_params": sac_params,
@@ -122,6 +184,8 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
         params = {**accepted_kwargs(cls, training), **explicit}
         if "progress" in accepted_kwargs(cls, {"progress": True}):
             params["progress"] = False
+        construct_checked(suite, f"encoder_params.{enc_name}", cls, params,
+                          lambda e: e.check_params())
         enc = StageSpec(ENCODER, jsonable_config({
             "encoder": enc_name, "params": params, "code": code_version(cls)}),
             inputs={"dataset": _ref(random_ds)}, label=f"{task_name} encoder {enc_name}")
@@ -143,6 +207,8 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             agent_cls = agents.get(a)
             aparams: dict[str, Any] = dict(suite.agent_params.get(a, {}))
             check_kwargs(f"agent_params.{a}", agent_cls, aparams)
+            construct_checked(suite, f"agent_params.{a}", agent_cls, aparams,
+                              _agent_validator(suite.rl.train_steps))
             for seed in suite.seeds:
                 tp.rl[(enc_name, a, seed)] = StageSpec(RL, jsonable_config({
                     **task_cfg, "agent": a, "agent_params": aparams,
@@ -151,3 +217,12 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                     "agent_code": code_version(agent_cls)}),
                     inputs={"encoder": _ref(enc)}, label=f"{task_name} {a} × {enc_name} s{seed}")
     return tp
+
+
+def _agent_validator(train_steps: int) -> Callable[[Any], None]:
+    def validate(agent: Any) -> None:
+        check = getattr(agent, "validate", None)
+        if callable(check):
+            check(train_steps)
+
+    return validate

@@ -8,6 +8,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from repbench.errors import ConfigError, RepbenchError
 from repbench.executors import RunReport, make_executor, run_stages
 from repbench.leaderboard import Results, collect_results, write_leaderboards
 from repbench.plan import build_plan
@@ -36,6 +37,7 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     work starts. Stages that fail are reported; the leaderboards show what finished.
     """
     start = time.time()
+    check_workers(workers)
     s = load_suite(suite)
     st = Store(store)
     plan = build_plan(s)
@@ -57,11 +59,21 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     return RunResult(out_dir, report, results, time.time() - start)
 
 
+def check_workers(workers: int | None) -> None:
+    """Raise ConfigError for a worker count below 1 (None means: size to the machine)."""
+    if workers is not None and workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {workers}; leave it out to use "
+                          "one worker per CPU core")
+
+
 def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing."""
     s = load_suite(suite)
     st = Store(store)
     results = collect_results(build_plan(s), st)
+    if not (results.encoder_rows or results.metric_rows or results.rl_rows):
+        raise RepbenchError(f"no results of suite {s.name!r} in store {st.root}; run "
+                            f"`repbench run --suite {suite}` with the same --store first")
     out_dir = Path(out) if out is not None else default_out_dir(s.name)
     return write_leaderboards(results, out_dir)

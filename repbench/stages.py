@@ -8,19 +8,14 @@ redoes nothing that finished.
 
 from __future__ import annotations
 
-import hashlib
-import inspect
-import json
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from repbench.dataset import Dataset
-from repbench.errors import ConfigError
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.store import Store, stage_key
 
@@ -45,36 +40,6 @@ class StageSpec:
     @property
     def deps(self) -> list[tuple[str, str]]:
         return list(self.inputs.values())
-
-
-def code_version(obj: Any) -> str:
-    """Short hash of the source file defining ``obj``: editing a plugin invalidates its results."""
-    try:
-        src = inspect.getsourcefile(obj if inspect.isclass(obj) or inspect.isfunction(obj)
-                                    else type(obj))
-        if getattr(obj, "fn", None) is not None:  # repbench.Metric wraps a function
-            src = inspect.getsourcefile(obj.fn)
-    except TypeError:
-        src = None
-    if not src or not Path(src).is_file():
-        return "unknown"
-    return hashlib.sha256(Path(src).read_bytes()).hexdigest()[:12]
-
-
-def accepted_kwargs(factory: Callable[..., Any], params: Mapping[str, Any]) -> dict[str, Any]:
-    """The subset of ``params`` that ``factory``'s signature accepts."""
-    sig = inspect.signature(factory)
-    if any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
-        return dict(params)
-    return {k: v for k, v in params.items() if k in sig.parameters}
-
-
-def check_kwargs(owner: str, factory: Callable[..., Any], params: Mapping[str, Any]) -> None:
-    """Raise ConfigError if ``params`` has keys ``factory`` does not accept."""
-    unknown = set(params) - set(accepted_kwargs(factory, params))
-    if unknown:
-        valid = [p for p in inspect.signature(factory).parameters if p not in ("self",)]
-        raise ConfigError(f"{owner}: unknown parameter(s) {sorted(unknown)}; valid: {valid}")
 
 
 # -- stage implementations ---------------------------------------------------------------------
@@ -232,8 +197,3 @@ def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
         writer.extra_meta["label"] = spec.label
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)
     return {"key": key, "status": "done", "seconds": time.time() - start}
-
-
-def jsonable_config(cfg: Mapping[str, Any]) -> dict[str, Any]:
-    """Round-trip through JSON so configs hash identically wherever they were built."""
-    return json.loads(json.dumps(cfg, sort_keys=True))
