@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset
-from repbench.encoder import Encoder
+from repbench.dataset import FT, IMAGE, PROPRIO, Dataset
+from repbench.encoder import Encoder, TrueStateEncoder
 from repbench.errors import ConfigError, DataError
 from repbench_encoders.vae import MultimodalVAE
 
@@ -32,31 +32,11 @@ def _check_width(name: str, modality: str, arr: np.ndarray, width: int) -> None:
                         f"time, got {list(arr.shape)}")
 
 
-class OracleEncoder(Encoder):
-    """The true state z° itself (float32); its latent size is the task's state size."""
+class OracleEncoder(TrueStateEncoder):
+    """The true state z° itself (float32); its latent size is the task's state size.
 
-    required_modalities = (TRUE_STATE,)
-
-    def __init__(self) -> None:
-        pass
-
-    def fit(self, dataset: Dataset) -> OracleEncoder:
-        """Record the true-state size."""
-        self.state_dim_ = int(dataset.true_state.shape[1])
-        return self
-
-    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
-        """Return ``observations["true_state"]`` as float32 [N, S]."""
-        self.check_is_fitted()
-        z = self.check_observations(observations)[TRUE_STATE]
-        _check_width(type(self).__name__, TRUE_STATE, z, self.state_dim_)
-        return np.array(z, dtype=np.float32, copy=True)
-
-    @property
-    def latent_dim(self) -> int:
-        """S, known after ``fit``."""
-        self.check_is_fitted()
-        return self.state_dim_
+    The implementation is :class:`repbench.encoder.TrueStateEncoder` (defined once, in the core).
+    """
 
 
 class ProprioOnlyEncoder(Encoder):

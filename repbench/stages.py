@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from repbench.dataset import Dataset
+from repbench.devices import torch_threads as limit_threads
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.store import Store, stage_key
 
@@ -175,13 +176,7 @@ def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) 
     pools to that many threads: workers then do not oversubscribe the cores, and every executor
     sums in the same order, so deterministic stages give bit-identical results everywhere.
     """
-    if torch_threads is None:
-        return _execute(spec, store_root)
-    import torch
-    from threadpoolctl import threadpool_limits
-
-    torch.set_num_threads(torch_threads)
-    with threadpool_limits(limits=torch_threads):
+    with limit_threads(torch_threads, blas=True):
         return _execute(spec, store_root)
 
 

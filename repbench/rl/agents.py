@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from repbench.agent import Agent, AgentResult
+from repbench.devices import resolve_device, torch_threads
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, TrainingDivergedError
 from repbench.rl.wrappers import (
@@ -48,31 +48,6 @@ NORMALIZE_SEED_BASE = 20_000
 def eval_seeds(n: int) -> list[int]:
     """The fixed reset seeds of ``n`` evaluation episodes."""
     return [EVAL_SEED_BASE + i for i in range(n)]
-
-
-def resolve_device(device: str) -> str:
-    """``"auto"`` → ``"cuda"`` if torch sees a GPU, else ``"cpu"``; anything else unchanged."""
-    if device == "auto":
-        import torch
-
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    return device
-
-
-@contextmanager
-def torch_threads(n: int | None) -> Iterator[None]:
-    """Set torch's intra-op thread count inside the block and restore it afterwards."""
-    if n is None:
-        yield
-        return
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 def evaluate(model: Any, env: Any, seeds: Sequence[int], *, deterministic: bool = True
