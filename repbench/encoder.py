@@ -58,6 +58,11 @@ class Encoder(abc.ABC):
     tensors; the base class takes care of files.
     """
 
+    #: Declared version of what this plugin computes. Part of every stage key and result record
+    #: in place of the source code: bump it when a change alters results; editing docstrings or
+    #: refactoring needs no bump. Older records then show as stale (:mod:`repbench.records`).
+    version: ClassVar[int] = 0
+
     #: Modalities ``encode`` reads; batches lacking one are rejected with a clear error.
     required_modalities: ClassVar[tuple[str, ...]] = (IMAGE, FT, PROPRIO)
 

@@ -24,11 +24,16 @@ __all__ = ["Metric", "MetricResult", "check_metric_inputs", "metric"]
 
 
 def metric(name: str, *, higher_is_better: bool, description: str = "", min_samples: int = 10,
-           register: bool = True) -> Callable[[Callable[..., MetricResult]], Metric]:
-    """Decorator turning a function into a :class:`Metric` (and registering it by default)."""
+           register: bool = True, version: int = 0
+           ) -> Callable[[Callable[..., MetricResult]], Metric]:
+    """Decorator turning a function into a :class:`Metric` (and registering it by default).
+
+    ``version``: bump it when a change alters the metric's values; stored results of the older
+    version then show as stale instead of being reused (:mod:`repbench.records`).
+    """
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:
-        m = Metric(fn, name, higher_is_better, description, min_samples)
+        m = Metric(fn, name, higher_is_better, description, min_samples, version=version)
         if register:
             metrics.register(name, m)
         return m

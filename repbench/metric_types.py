@@ -63,9 +63,11 @@ class Metric:
     """A registered metric function with its direction, description and input checks."""
 
     def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
-                 description: str = "", min_samples: int = 10, needs_episodes: bool = False
-                 ) -> None:
+                 description: str = "", min_samples: int = 10, needs_episodes: bool = False,
+                 version: int = 0) -> None:
         self.fn = fn
+        #: declared version of what the metric computes (see :class:`repbench.Encoder.version`)
+        self.version = int(version)
         self.name = name
         self.higher_is_better = higher_is_better
         self.description = description or (fn.__doc__ or "").strip().split("\n")[0]

@@ -8,21 +8,22 @@ Per task::
                     └─▶ true-state diagnostics (random + on-policy)
 
 Keys depend only on configs and input keys, so the whole plan (and therefore where every result
-lives in the store) is known before anything runs; ``repbench leaderboard`` uses that to collect
-results without recomputing.
+lives in the store) is known before anything runs. A plugin enters a key through its name, its
+parameters and its declared ``version`` (class attribute, default 0), never its source code: see
+:mod:`repbench.records` for the rule. Every stage also carries the context of its result record
+(``StageSpec.record``); ``repbench leaderboard`` selects stored records by their identity.
 """
 
 from __future__ import annotations
 
-import hashlib
 import inspect
 import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from repbench.errors import ConfigError, RepbenchError
+from repbench.records import plugin_part, plugin_version
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.stages import (
     DATASET,
@@ -74,20 +75,6 @@ class Plan:
 
 
 # -- planning helpers ---------------------------------------------------------------------------
-
-def code_version(obj: Any) -> str:
-    """Short hash of the source file defining ``obj``: editing a plugin invalidates its results."""
-    try:
-        src = inspect.getsourcefile(obj if inspect.isclass(obj) or inspect.isfunction(obj)
-                                    else type(obj))
-        if getattr(obj, "fn", None) is not None:  # repbench.Metric wraps a function
-            src = inspect.getsourcefile(obj.fn)
-    except TypeError:
-        src = None
-    if not src or not Path(src).is_file():
-        return "unknown"
-    return hashlib.sha256(Path(src).read_bytes()).hexdigest()[:12]
-
 
 def accepted_kwargs(factory: Callable[..., Any], params: Mapping[str, Any]) -> dict[str, Any]:
     """The subset of ``params`` that ``factory``'s signature accepts."""
@@ -146,13 +133,19 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
     task_params = suite.task_params.get(task_name, {})
     check_kwargs(f"task_params.{task_name}", task_cls, task_params)
     construct_checked(suite, f"task_params.{task_name!r}", task_cls, task_params)
-    task_cfg = {"task": task_name, "task_params": task_params, "code": code_version(task_cls)}
+    task_cfg = {"task": task_name, "task_params": task_params,
+                "task_version": plugin_version(task_cls)}
+    task_part = plugin_part(task_name, task_cls, task_params)
     ds = suite.dataset
+    random_data = {"episodes": ds.random_episodes, "steps": ds.random_steps, "seed": ds.seed}
+    data: dict[str, Any] = {"random": random_data, "on_policy": None, "full_state": None}
 
     random_ds = StageSpec(DATASET, jsonable_config({
         **task_cfg, "kind": "random", "n_episodes": ds.random_episodes,
-        "steps_per_episode": ds.random_steps, "seed": ds.seed}), label=f"{task_name} random data")
+        "steps_per_episode": ds.random_steps, "seed": ds.seed}), label=f"{task_name} random data",
+        record=_context("dataset", task_part, data={"name": "random", **random_data}))
     dataset_inputs = {"random": _ref(random_ds)}
+    data_stages = {"random": random_ds.key}
 
     full_state = on_policy = None
     if ds.on_policy_episodes > 0:
@@ -161,20 +154,35 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
         check_kwargs(f"agent_params.{FULL_STATE_AGENT}", sac_cls, sac_params)
         construct_checked(suite, f"agent_params.{FULL_STATE_AGENT}", sac_cls, sac_params,
                           _agent_validator(suite.rl.full_state_train_steps))
+        sac_part = plugin_part(FULL_STATE_AGENT, sac_cls, sac_params)
+        full_budget = {"train_steps": suite.rl.full_state_train_steps,
+                       "eval_episodes": suite.rl.eval_episodes}
         full_state = StageSpec(FULL_STATE, jsonable_config({
             **task_cfg, "train_steps": suite.rl.full_state_train_steps, "seed": ds.seed,
             "eval_episodes": suite.rl.eval_episodes, "agent_params": sac_params,
-            "code": code_version(sac_cls)}), inputs={"dataset": _ref(random_ds)},
-            label=f"{task_name} full-state SAC")
+            "agent_version": plugin_version(sac_cls)}), inputs={"dataset": _ref(random_ds)},
+            label=f"{task_name} full-state SAC",
+            record=_context("full_state_agent", task_part, data={"random": random_data},
+                            agent=sac_part, seed=ds.seed, budget=full_budget))
+        data["full_state"] = {"agent": FULL_STATE_AGENT, "params": sac_part["params"],
+                              **full_budget, "seed": ds.seed}
+        data["on_policy"] = {"episodes": ds.on_policy_episodes, "steps": ds.on_policy_steps,
+                             "seed": ds.seed + 1}
         on_policy = StageSpec(DATASET, jsonable_config({
             **task_cfg, "kind": "on_policy", "n_episodes": ds.on_policy_episodes,
             "steps_per_episode": ds.on_policy_steps, "seed": ds.seed + 1}),
-            inputs={"policy": _ref(full_state)}, label=f"{task_name} on-policy data")
+            inputs={"policy": _ref(full_state)}, label=f"{task_name} on-policy data",
+            record=_context("dataset", task_part, data={
+                "name": "on_policy", **data["on_policy"], "full_state": data["full_state"],
+                "random": random_data}))
         dataset_inputs["on_policy"] = _ref(on_policy)
+        data_stages["on_policy"] = on_policy.key
 
     tp = TaskPlan(task_name, random_ds, on_policy, full_state,
                   StageSpec(DIAGNOSTICS, {"task": task_name}, inputs=dataset_inputs,
-                            label=f"{task_name} true-state diagnostics"))
+                            label=f"{task_name} true-state diagnostics",
+                            record=_context("diagnostics", task_part, data=data,
+                                            data_stages=data_stages)))
 
     training = suite.encoder_training.model_dump()
     for enc_name in suite.encoders:
@@ -186,13 +194,18 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             params["progress"] = False
         construct_checked(suite, f"encoder_params.{enc_name}", cls, params,
                           lambda e: e.check_params())
+        enc_part = plugin_part(enc_name, cls, params)
         enc = StageSpec(ENCODER, jsonable_config({
-            "encoder": enc_name, "params": params, "code": code_version(cls)}),
-            inputs={"dataset": _ref(random_ds)}, label=f"{task_name} encoder {enc_name}")
+            "encoder": enc_name, "params": params, "version": plugin_version(cls)}),
+            inputs={"dataset": _ref(random_ds)}, label=f"{task_name} encoder {enc_name}",
+            record=_context("encoder", task_part, data={"random": random_data},
+                            encoder=enc_part, data_stages={"random": random_ds.key}))
         tp.encoders[enc_name] = enc
         lat = StageSpec(LATENTS, {"encoder": enc_name}, inputs={"encoder": _ref(enc),
                                                                **dataset_inputs},
-                        label=f"{task_name} latents {enc_name}")
+                        label=f"{task_name} latents {enc_name}",
+                        record=_context("latents", task_part, data=data, encoder=enc_part,
+                                        data_stages=data_stages))
         tp.latents[enc_name] = lat
         for m in suite.metrics:
             fn = metrics.get(m)
@@ -201,21 +214,31 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             check_kwargs(f"metric_params.{m}", fn.fn if hasattr(fn, "fn") else fn, mparams)
             tp.metrics[(enc_name, m)] = StageSpec(METRIC, jsonable_config({
                 "metric": m, "params": mparams, "seed": suite.metric_settings.seed,
-                "code": code_version(fn)}), inputs={"latents": _ref(lat)},
-                label=f"{task_name} {m} × {enc_name}")
+                "version": plugin_version(fn)}), inputs={"latents": _ref(lat)},
+                label=f"{task_name} {m} × {enc_name}",
+                record=_context("metric", task_part, data=data, encoder=enc_part,
+                                metric=plugin_part(m, fn, mparams),
+                                seed=suite.metric_settings.seed, data_stages=data_stages))
         for a in suite.agents:
             agent_cls = agents.get(a)
             aparams: dict[str, Any] = dict(suite.agent_params.get(a, {}))
             check_kwargs(f"agent_params.{a}", agent_cls, aparams)
             construct_checked(suite, f"agent_params.{a}", agent_cls, aparams,
                               _agent_validator(suite.rl.train_steps))
+            agent_part = plugin_part(a, agent_cls, aparams)
+            budget = {"train_steps": suite.rl.train_steps,
+                      "eval_episodes": suite.rl.eval_episodes,
+                      "curve_points": suite.rl.curve_points}
             for seed in suite.seeds:
                 tp.rl[(enc_name, a, seed)] = StageSpec(RL, jsonable_config({
                     **task_cfg, "agent": a, "agent_params": aparams,
                     "train_steps": suite.rl.train_steps, "eval_episodes": suite.rl.eval_episodes,
                     "curve_points": suite.rl.curve_points, "seed": seed,
-                    "agent_code": code_version(agent_cls)}),
-                    inputs={"encoder": _ref(enc)}, label=f"{task_name} {a} × {enc_name} s{seed}")
+                    "agent_version": plugin_version(agent_cls)}),
+                    inputs={"encoder": _ref(enc)}, label=f"{task_name} {a} × {enc_name} s{seed}",
+                    record=_context("rl", task_part, data={"random": random_data},
+                                    encoder=enc_part, agent=agent_part, seed=seed,
+                                    budget=budget, data_stages={"random": random_ds.key}))
     return tp
 
 
@@ -226,3 +249,8 @@ def _agent_validator(train_steps: int) -> Callable[[Any], None]:
             check(train_steps)
 
     return validate
+
+
+def _context(kind: str, task: dict[str, Any], **parts: Any) -> dict[str, Any]:
+    """The record context of a stage (:mod:`repbench.records`), JSON-clean."""
+    return jsonable_config({"kind": kind, "task": task, **parts})

@@ -8,6 +8,7 @@ redoes nothing that finished.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -17,6 +18,7 @@ import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
+from repbench.records import RECORD_FILE, make_record, write_record
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.store import Store, stage_key
 
@@ -33,6 +35,9 @@ class StageSpec:
     config: Mapping[str, Any]
     inputs: Mapping[str, tuple[str, str]] = field(default_factory=dict)  # name → (kind, key)
     label: str = ""
+    #: What the stage computes, for its result record (:mod:`repbench.records`): task, data,
+    #: plugins with versions and parameters, seed. Not part of the key (the config is).
+    record: Mapping[str, Any] | None = field(default=None, compare=False)
 
     @property
     def key(self) -> str:
@@ -71,7 +76,7 @@ def _run_dataset(spec: StageSpec, store: Store, w: Any) -> None:
                       steps_per_episode=cfg["steps_per_episode"], seed=cfg["seed"],
                       policy=policy, progress=False)
     ds.save(w.file("dataset.npz"))
-    w.write_json({"n_steps": len(ds), "n_episodes": ds.n_episodes,
+    w.write_json({"n_steps": len(ds), "n_episodes": ds.n_episodes, "checksum": ds.checksum(),
                   "success_rate": float(ds.success.mean()), "metadata": ds.metadata})
 
 
@@ -190,5 +195,28 @@ def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
                      inputs=[k for _, k in spec.inputs.values()],
                      seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
+        cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)
+        if spec.record is not None:
+            _write_record(spec, store, writer, time.time() - start, time.process_time() - cpu)
     return {"key": key, "status": "done", "seconds": time.time() - start}
+
+
+def _write_record(spec: StageSpec, store: Store, w: Any, wall_s: float, cpu_s: float) -> None:
+    """The stage's self-describing result record (:mod:`repbench.records`), in its artifact."""
+    assert spec.record is not None
+    result = w.file("result.json")
+    values = json.loads(result.read_text()) if result.is_file() else {}
+    if spec.kind == ENCODER and w.file("reconstructions.png").is_file():
+        values["files"] = {"reconstructions": "reconstructions.png"}
+    checksums = {}
+    for name, key in sorted(spec.record.get("data_stages", {}).items()):
+        if (art := store.get(DATASET, key, verify=False)) is not None:
+            checksums[name] = art.read_json().get("checksum")
+    if spec.kind == DATASET:
+        checksums[spec.record.get("data", {}).get("name", "dataset")] = values.get("checksum")
+    record = make_record(spec.record, values, data_checksums=checksums,
+                         stage={"kind": spec.kind, "key": spec.key, "label": spec.label,
+                                "inputs": sorted(k for _, k in spec.inputs.values())},
+                         timings={"wall_time_s": round(wall_s, 3), "cpu_time_s": round(cpu_s, 3)})
+    write_record(record, w.file(RECORD_FILE))
