@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from repbench.correlation import METHODS, correlate, mean_ci
-from repbench.results import Results, build_results
+from repbench.results import Results, build_results, write_records
 
 __all__ = ["Results", "build_results", "encoder_table", "metric_table", "write_leaderboards"]
 
@@ -96,7 +96,8 @@ def metric_table(res: Results, n_bootstrap: int = 1000, seed: int = 0) -> pd.Dat
 
 
 def write_leaderboards(res: Results, out_dir: Path) -> Path:
-    """Write ``encoders.csv``, ``metrics.csv``, ``results.json``, figures and ``index.html``."""
+    """Write ``encoders.csv``, ``metrics.csv``, ``provenance.json``, figures, ``index.html`` and
+    the records they were computed from (``records/``)."""
     from repbench.figures import make_figures
     from repbench.report_html import render_html
 
@@ -105,6 +106,7 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
     met = metric_table(res)
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
+    write_records(res.records, out_dir / "records")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)
     for stale in (out_dir / "figures").glob("*.png"):  # figures of an earlier write

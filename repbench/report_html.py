@@ -115,7 +115,7 @@ def _encoder_row_class(res: Any) -> Any:
 
 
 def _encoder_notes(res: Any) -> list[str]:
-    notes = []
+    notes = [f"<p class='note'>⚠ {html.escape(w)}</p>" for w in getattr(res, "warnings", [])]
     highlight = getattr(res, "highlight", []) or []
     predictions = getattr(res, "predictions", []) or []
     if highlight:

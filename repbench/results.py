@@ -44,6 +44,10 @@ class Results:
     #: predicted returns (``repbench evaluate --metrics-only``): dicts with task, encoder,
     #: agent, predicted_return, ci_low, ci_high, predictor, n_reference, method
     predictions: list[dict[str, Any]] = field(default_factory=list)
+    #: the records the results were built from (written to ``<leaderboard>/records/``)
+    records: list[dict[str, Any]] = field(default_factory=list)
+    #: notes shown above the tables (e.g. data that differ from the reference data)
+    warnings: list[str] = field(default_factory=list)
 
 
 # -- reading --------------------------------------------------------------------------------------
@@ -131,6 +135,7 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     res.missing = list(missing)
     installed = installed or {}
     records = sorted(records, key=_order)
+    res.records = list(records)
     directions: dict[str, bool] = {}
     for r in records:
         task = r["task"]["name"]
@@ -200,3 +205,26 @@ def _provenance(suite: Any, records: list[Mapping[str, Any]]) -> dict[str, Any]:
         "n_records": len(records),
     })
     return out
+
+
+def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Path]:
+    """Write ``records`` as ``folder/<kind>/<task>.<encoder>.<metric|agent>.s<seed>-<id>.json``
+    (replacing the folder's earlier records): the shippable form of a leaderboard's results."""
+    from repbench.records import write_record
+
+    folder = Path(folder)
+    if folder.is_dir():
+        for old in folder.rglob("*.json"):
+            old.unlink()
+    paths = []
+    for r in records:
+        parts = [r["task"]["name"], *((r.get(p) or {}).get("name") for p in PLUGIN_PARTS[1:])]
+        if isinstance(r.get("seed"), int) and r["kind"] == "rl":
+            parts.append(f"s{r['seed']}")
+        slug = ".".join(_slug(p) for p in parts if p)
+        paths.append(write_record(r, folder / r["kind"] / f"{slug}-{r['identity'][:8]}.json"))
+    return paths
+
+
+def _slug(text: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in str(text))
