@@ -18,6 +18,7 @@ from typing import Any
 from repbench.errors import RepbenchError
 from repbench.records import PLUGIN_PARTS, RECORD_FILE, plugin_version, read_record, versions_of
 from repbench.registry import REGISTRIES
+from repbench.store import Store
 
 #: Stage kinds whose records the leaderboard reads.
 RECORD_KINDS = ("dataset", "full_state_agent", "diagnostics", "encoder", "latents", "metric",
@@ -58,8 +59,8 @@ def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS) -> list[dic
     out: list[dict[str, Any]] = []
     kinds = tuple(kinds)
     for source in sources:
-        root = Path(getattr(source, "root", source))
-        if any((root / k).is_dir() for k in RECORD_KINDS):  # a store
+        root = source.root if isinstance(source, Store) else Path(source)
+        if isinstance(source, Store) or (root / ".tmp").is_dir():  # a stage store
             paths: Iterable[Path] = (p for k in kinds for p in sorted((root / k).glob(
                 f"*/{RECORD_FILE}")))
         else:
@@ -134,7 +135,7 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     res = Results(suite)
     res.missing = list(missing)
     installed = installed or {}
-    records = sorted(records, key=_order)
+    records = sorted(records, key=_order_by(suite))
     res.records = list(records)
     directions: dict[str, bool] = {}
     for r in records:
@@ -176,10 +177,22 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     return res
 
 
-def _order(r: Mapping[str, Any]) -> tuple[Any, ...]:
-    return (r["task"]["name"], (r.get("encoder") or {}).get("name") or "", r.get("kind"),
-            *((r.get(p) or {}).get("name") or "" for p in PLUGIN_PARTS[2:]),
-            r.get("seed") if isinstance(r.get("seed"), int) else -1)
+def _order_by(suite: Any) -> Any:
+    """Sort key: the suite's order of tasks, encoders, metrics and agents (so tables keep the
+    suite's column order); names the suite does not list come after, alphabetically."""
+    lists = {part: list(getattr(suite, f"{part}s", []) or []) for part in PLUGIN_PARTS}
+
+    def pos(part: str, r: Mapping[str, Any]) -> tuple[int, str]:
+        name = (r.get(part) or {}).get("name") or ""
+        order = lists[part]
+        return (order.index(name) if name in order else len(order), name)
+
+    def key(r: Mapping[str, Any]) -> tuple[Any, ...]:
+        seed = r.get("seed")
+        return (pos("task", r), pos("encoder", r), str(r.get("kind")), pos("metric", r),
+                pos("agent", r), seed if isinstance(seed, int) else -1)
+
+    return key
 
 
 def _provenance(suite: Any, records: list[Mapping[str, Any]]) -> dict[str, Any]:
@@ -219,6 +232,8 @@ def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Pa
     paths = []
     for r in records:
         parts = [r["task"]["name"], *((r.get(p) or {}).get("name") for p in PLUGIN_PARTS[1:])]
+        if r["kind"] == "dataset":
+            parts.append((r.get("data") or {}).get("name"))
         if isinstance(r.get("seed"), int) and r["kind"] == "rl":
             parts.append(f"s{r['seed']}")
         slug = ".".join(_slug(p) for p in parts if p)

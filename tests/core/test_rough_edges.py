@@ -45,6 +45,11 @@ def test_leaderboard_on_an_empty_store(tmp_path: Path) -> None:
     assert not (tmp_path / "lb" / "encoders.csv").exists()
 
 
+def test_evaluate_unknown_encoder(tmp_path: Path) -> None:
+    out = _repbench("evaluate", "vea", "--suite", "smoke", "--store", str(tmp_path / "s"))
+    _one_line_exit_2(out, "unknown encoder 'vea'; did you mean 'vae'")
+
+
 def test_workers_below_one(tmp_path: Path) -> None:
     out = _repbench("run", "--suite", "smoke", "--workers", "0", "--store", str(tmp_path / "s"))
     _one_line_exit_2(out, "--workers must be at least 1, got 0")
