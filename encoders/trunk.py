@@ -99,6 +99,23 @@ class TrunkEncoder(Encoder):
         """Further per-row training tensors (e.g. a regression target)."""
         return {}
 
+    def _prepare(self, dataset: Dataset) -> None:
+        """Learn what the network's shape depends on (called before :meth:`_build_net`)."""
+
+    def _pairs(self, dataset: Dataset) -> tuple[np.ndarray, np.ndarray | None]:
+        """Training rows and, for :attr:`temporal` objectives, each row's partner."""
+        if not self.temporal:
+            return np.arange(len(dataset)), None
+        rows, nxt = dataset.successor_index()
+        if rows.size == 0:
+            raise DataError(f"{type(self).__name__} needs pairs (n, n+1) from one episode; "
+                            "the dataset has none (every episode has a single step)")
+        return rows, nxt
+
+    def _eval_batch_size(self) -> int:
+        """Batch size of held-out evaluation (objectives over a batch use the training one)."""
+        return _EVAL_BATCH
+
     # -- parameters ----------------------------------------------------------------------------
     def _check_params(self) -> None:
         name = type(self).__name__
@@ -158,13 +175,7 @@ class TrunkEncoder(Encoder):
         self._check_params()
         name = type(self).__name__
         spec = self._network_spec(dataset)
-        if self.temporal:
-            rows, nxt = dataset.successor_index()
-            if rows.size == 0:
-                raise DataError(f"{name} needs pairs (n, n+1) from one episode; the dataset "
-                                "has none (every episode has a single step)")
-        else:
-            rows, nxt = np.arange(len(dataset)), None
+        rows, nxt = self._pairs(dataset)
         held = np.zeros(rows.size, bool)
         if self.validation_fraction > 0:
             if dataset.n_episodes < 2:
@@ -179,6 +190,7 @@ class TrunkEncoder(Encoder):
         self.stats_ = _statistics(dataset)
         self._device = device
         self._cache: dict[str, torch.Tensor] = {}
+        self._prepare(dataset)
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
             net = self._build_net(spec)
@@ -251,16 +263,21 @@ class TrunkEncoder(Encoder):
 
     def _evaluate(self, data: dict[str, torch.Tensor], rows: np.ndarray,
                   nxt: np.ndarray | None) -> dict[str, float]:
-        """Mean loss terms over ``rows`` in evaluation mode (fixed seed, no gradients)."""
+        """Mean loss terms over ``rows`` in evaluation mode (fixed seed and batch order, no
+        gradients)."""
         gen = torch.Generator(device=self._device)
         gen.manual_seed(self.seed + 1)
+        order = np.random.default_rng(self.seed + 1).permutation(rows.size)
+        rows = rows[order]
+        nxt = None if nxt is None else nxt[order]
         keys = ("loss", *self.LOSS_TERMS)
         sums = dict.fromkeys(keys, 0.0)
+        size = self._eval_batch_size()
         self.net_.eval()
         with torch.inference_mode():
-            for s in range(0, rows.size, _EVAL_BATCH):
-                b = rows[s:s + _EVAL_BATCH]
-                b_next = None if nxt is None else torch.as_tensor(nxt[s:s + _EVAL_BATCH],
+            for s in range(0, rows.size, size):
+                b = rows[s:s + size]
+                b_next = None if nxt is None else torch.as_tensor(nxt[s:s + size],
                                                                   device=self._device)
                 terms = self._loss_terms(data, torch.as_tensor(b, device=self._device), b_next,
                                          gen, False)
@@ -273,10 +290,7 @@ class TrunkEncoder(Encoder):
         for the VAE family the same quantity as the held-out curve of :attr:`history_`)."""
         self.check_is_fitted()
         data = {**self._dataset_tensors(dataset), **self._extra_tensors(dataset)}
-        if self.temporal:
-            rows, nxt = dataset.successor_index()
-        else:
-            rows, nxt = np.arange(len(dataset)), None
+        rows, nxt = self._pairs(dataset)
         return self._evaluate(data, rows, nxt)
 
     def _dataset_tensors(self, dataset: Dataset) -> dict[str, torch.Tensor]:
