@@ -61,9 +61,10 @@ def collect_results(plan: Plan, store: Store) -> Results:
             res.encoder_rows.append({"task": tp.task, "encoder": enc_name,
                                      "latent_dim": info.get("latent_dim"),
                                      "fit_time_s": info.get("fit_time_s")})
-            png = art.file("reconstructions.png")
-            if png.is_file():
-                res.figures_from_store[f"reconstructions {enc_name}"] = png
+            for stem in ("reconstructions", "loss_curves"):
+                png = art.file(f"{stem}.png")
+                if png.is_file():
+                    res.figures_from_store[f"{stem} {enc_name}"] = png
         for (enc_name, metric_name), spec in tp.metrics.items():
             if (art := fetch(spec)) is None:
                 continue
