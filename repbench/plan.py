@@ -159,8 +159,9 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
         # privileged agent learns the task with, then the suite's explicit privileged settings
         sac_params = {**suite.agent_params.get(FULL_STATE_AGENT, {}),
                       **PRIVILEGED_AGENT_PARAMS, **rl.privileged_params}
-        check_kwargs("rl.privileged_params", sac_cls, sac_params)
-        construct_checked(suite, "rl.privileged_params", sac_cls, sac_params,
+        field_name = f"rl.privileged_params (over agent_params.{FULL_STATE_AGENT})"
+        check_kwargs(field_name, sac_cls, sac_params)
+        construct_checked(suite, field_name, sac_cls, sac_params,
                           _agent_validator(rl.full_state_train_steps))
         sac_part = plugin_part(FULL_STATE_AGENT, sac_cls, sac_params)
         full_budget = {"train_steps": rl.full_state_train_steps,
