@@ -11,6 +11,19 @@ Register it with the decorator, which also validates inputs before the function 
 
     @repbench.metric("my_metric", higher_is_better=True, description="...")
     def my_metric(z, z_true, episode, rng, *, k=5) -> MetricResult: ...
+
+Extra arrays. A metric that needs more than ``(z, z_true, episode)`` declares keyword-only
+parameters named after the arrays the latents stage stores (:data:`EXTRA_INPUTS`):
+``robot_state`` (float ``[N, R]``: what the agent sees beside z, ``Task.robot_state``),
+``task_state`` (float ``[N, K]``: ``Task.task_state``, e.g. the peg tip's offset from the hole),
+``action`` (float ``[N, A]``: the dataset's action at each step; on the on-policy dataset the
+privileged agent's) and ``source`` (int ``[N]``: which dataset a row came from). The metric stage
+passes exactly the ones the function's signature names; the wrapper checks their shape and values.
+
+Rows. ``rows="on_policy"`` in the decorator makes the metric stage compute the metric on the
+on-policy dataset's rows only (the paper's choice for smoothness and latent distances; needed for
+the expert-action probe); the default ``"all"`` uses every row the latents stage stored (the
+held-out backwards-exploration episodes and the on-policy episodes).
 """
 
 from __future__ import annotations
@@ -24,6 +37,11 @@ from typing import Any
 import numpy as np
 
 from repbench.errors import DataError
+
+#: Arrays beside (z, z_true, episode) that a metric can ask for by naming a keyword parameter.
+EXTRA_INPUTS = ("robot_state", "task_state", "action", "source")
+#: Which rows of the stored latents a metric is computed on (see the module docstring).
+ROWS = ("all", "on_policy")
 
 
 @dataclass(frozen=True)
@@ -58,14 +76,17 @@ class Metric:
     """A registered metric function with its direction, description and input checks."""
 
     def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
-                 description: str = "", min_samples: int = 10, needs_episodes: bool = False
-                 ) -> None:
+                 description: str = "", min_samples: int = 10, needs_episodes: bool = False,
+                 rows: str = "all") -> None:
+        if rows not in ROWS:
+            raise ValueError(f"metric {name!r}: rows must be one of {ROWS}, got {rows!r}")
         self.fn = fn
         self.name = name
         self.higher_is_better = higher_is_better
         self.description = description or (fn.__doc__ or "").strip().split("\n")[0]
         self.min_samples = min_samples
         self.needs_episodes = needs_episodes
+        self.rows = rows
         functools.update_wrapper(self, fn)
         self.__doc__ = fn.__doc__ or self.description
 
@@ -74,6 +95,9 @@ class Metric:
         z, z_true, episode = check_metric_inputs(
             z, z_true, episode, name=self.name, min_samples=self.min_samples,
         )
+        for key in self.extra_inputs:
+            if key in params and params[key] is not None:
+                params[key] = check_extra_input(params[key], key, len(z), name=self.name)
         if not isinstance(rng, np.random.Generator):
             rng = np.random.default_rng(0 if rng is None else rng)
         result = self.fn(z, z_true, episode, rng, **params)
@@ -83,16 +107,29 @@ class Metric:
             raise TypeError(f"metric {self.name!r} returned a result with the wrong direction")
         return result
 
+    @property
+    def extra_inputs(self) -> tuple[str, ...]:
+        """The names in :data:`EXTRA_INPUTS` that the function's signature accepts."""
+        import inspect
+
+        sig = inspect.signature(self.fn).parameters
+        return tuple(k for k in EXTRA_INPUTS if k in sig)
+
     def __repr__(self) -> str:
         return f"<Metric {self.name} ({'higher' if self.higher_is_better else 'lower'} is better)>"
 
 
 def metric(name: str, *, higher_is_better: bool, description: str = "", min_samples: int = 10,
-           register: bool = True) -> Callable[[Callable[..., MetricResult]], Metric]:
-    """Decorator turning a function into a :class:`Metric` (and registering it by default)."""
+           register: bool = True, rows: str = "all"
+           ) -> Callable[[Callable[..., MetricResult]], Metric]:
+    """Decorator turning a function into a :class:`Metric` (and registering it by default).
+
+    ``rows`` (``"all"`` or ``"on_policy"``) says which rows of the stored latents the metric
+    stage computes it on (module docstring).
+    """
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:
-        m = Metric(fn, name, higher_is_better, description, min_samples)
+        m = Metric(fn, name, higher_is_better, description, min_samples, rows=rows)
         if register:
             from repbench.registry import metrics
 
@@ -125,6 +162,25 @@ def check_metric_inputs(z: Any, z_true: Any, episode: Any = None, *, name: str =
     if episode.shape != (z.shape[0],):
         raise DataError(f"{name}: episode must have shape ({z.shape[0]},), got {episode.shape}")
     return z, z_true, episode
+
+
+def check_extra_input(value: Any, key: str, n: int, *, name: str = "metric") -> np.ndarray:
+    """Validate one extra array (:data:`EXTRA_INPUTS`): aligned with z, finite, right rank."""
+    arr = np.asarray(value)
+    if key == "source":
+        if arr.shape != (n,):
+            raise DataError(f"{name}: source must have shape ({n},), got {arr.shape}")
+        return arr
+    arr = np.asarray(arr, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or arr.shape[0] != n:
+        raise DataError(f"{name}: {key} must be [{n}, dims] aligned with z, got shape "
+                        f"{arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = int((~np.isfinite(arr)).any(axis=1).sum())
+        raise DataError(f"{name}: {key} has NaN/inf in {bad} rows; drop or fix them first")
+    return arr
 
 
 def _jsonable(value: Any) -> Any:
