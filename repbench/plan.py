@@ -4,8 +4,13 @@ Per task::
 
     random dataset ─┬─▶ full-state SAC (oracle) ─▶ on-policy dataset ─┐
                     ├─▶ encoder e (for every e) ──────────────────────┼─▶ latents e ─▶ metric m
-                    │                     └─▶ RL (agent a, seed s) ───┘
-                    └─▶ true-state diagnostics (random + on-policy)
+                    │                     └─▶ RL (agent a, seed s)    │
+                    └─▶ true-state diagnostics (random + on-policy)   │
+    held-out dataset (own seed, off-grid holes) ──────────────────────┘
+
+The latents (and so every metric) come from the held-out and on-policy datasets, which no encoder
+trains on; without a held-out dataset (``dataset.heldout_episodes = 0``) they come from the
+random (training) and on-policy datasets, as before.
 
 Keys depend only on configs and input keys, so the whole plan (and therefore where every result
 lives in the store) is known before anything runs; ``repbench leaderboard`` uses that to collect
@@ -50,6 +55,7 @@ class TaskPlan:
     latents: dict[str, StageSpec] = field(default_factory=dict)
     metrics: dict[tuple[str, str], StageSpec] = field(default_factory=dict)  # (enc, metric)
     rl: dict[tuple[str, str, int], StageSpec] = field(default_factory=dict)  # (enc, agent, seed)
+    heldout_dataset: StageSpec | None = None
 
 
 @dataclass
@@ -61,10 +67,10 @@ class Plan:
         """All stages in a dependency-respecting order, without duplicates."""
         out: dict[str, StageSpec] = {}
         for tp in self.tasks:
-            seq: list[StageSpec | None] = [tp.random_dataset, tp.full_state, tp.on_policy_dataset,
-                                           tp.diagnostics, *tp.encoders.values(),
-                                           *tp.latents.values(), *tp.metrics.values(),
-                                           *tp.rl.values()]
+            seq: list[StageSpec | None] = [
+                tp.random_dataset, tp.full_state, tp.on_policy_dataset, tp.heldout_dataset,
+                tp.diagnostics, *tp.encoders.values(), *tp.latents.values(),
+                *tp.metrics.values(), *tp.rl.values()]
             for s in seq:
                 if s is not None:
                     out.setdefault(f"{s.kind}/{s.key}", s)
@@ -113,6 +119,18 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
     tp = TaskPlan(task_name, random_ds, on_policy, full_state,
                   StageSpec(DIAGNOSTICS, {"task": task_name}, inputs=dataset_inputs,
                             label=f"{task_name} true-state diagnostics"))
+    metric_inputs = dict(dataset_inputs)
+    if ds.heldout_episodes > 0:
+        heldout_params = {**task_params, **suite.heldout_task_params.get(task_name, {})}
+        check_kwargs(f"heldout_task_params.{task_name}", task_cls, heldout_params)
+        tp.heldout_dataset = StageSpec(DATASET, jsonable_config({
+            **task_cfg, "task_params": heldout_params, "kind": "random",
+            "n_episodes": ds.heldout_episodes,
+            "steps_per_episode": ds.heldout_steps or ds.random_steps, "seed": ds.heldout_seed}),
+            label=f"{task_name} held-out data")
+        metric_inputs = {"heldout": _ref(tp.heldout_dataset)}
+        if on_policy is not None:
+            metric_inputs["on_policy"] = _ref(on_policy)
 
     training = suite.encoder_training.model_dump()
     for enc_name in suite.encoders:
@@ -126,8 +144,8 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             "encoder": enc_name, "params": params, "code": code_version(cls)}),
             inputs={"dataset": _ref(random_ds)}, label=f"{task_name} encoder {enc_name}")
         tp.encoders[enc_name] = enc
-        lat = StageSpec(LATENTS, {"encoder": enc_name}, inputs={"encoder": _ref(enc),
-                                                               **dataset_inputs},
+        lat = StageSpec(LATENTS, jsonable_config({"encoder": enc_name, "task": task_cfg}),
+                        inputs={"encoder": _ref(enc), **metric_inputs},
                         label=f"{task_name} latents {enc_name}")
         tp.latents[enc_name] = lat
         for m in suite.metrics:
@@ -137,7 +155,8 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             check_kwargs(f"metric_params.{m}", fn.fn if hasattr(fn, "fn") else fn, mparams)
             tp.metrics[(enc_name, m)] = StageSpec(METRIC, jsonable_config({
                 "metric": m, "params": mparams, "seed": suite.metric_settings.seed,
-                "code": code_version(fn)}), inputs={"latents": _ref(lat)},
+                "rows": getattr(fn, "rows", "all"), "code": code_version(fn)}),
+                inputs={"latents": _ref(lat)},
                 label=f"{task_name} {m} × {enc_name}")
         for a in suite.agents:
             agent_cls = agents.get(a)
