@@ -38,6 +38,8 @@ def _check_width(name: str, modality: str, arr: np.ndarray, width: int) -> None:
 class OracleEncoder(Encoder):
     """The true state z° itself (float32); its latent size is the task's state size."""
 
+    family = "baseline"
+
     required_modalities = (TRUE_STATE,)
 
     def __init__(self) -> None:
@@ -77,6 +79,8 @@ class OracleTaskEncoder(Encoder):
         task: the registered task whose ``task_state`` defines z; ``None`` takes the task
             named in the fitting dataset's metadata.
     """
+
+    family = "baseline"
 
     required_modalities = (PROPRIO, TRUE_STATE)
 
@@ -137,6 +141,8 @@ def accepted_params(cls: type, params: Mapping[str, Any]) -> dict[str, Any]:
 class ProprioOnlyEncoder(Encoder):
     """Robot state only (standardized proprioception), no vision or force."""
 
+    family = "baseline"
+
     required_modalities = (PROPRIO,)
 
     def __init__(self) -> None:
@@ -169,6 +175,8 @@ class RandomEncoder(MultimodalVAE):
     Fitting only computes the input normalization statistics; ``encode`` returns μ_z.
     """
 
+    family = "baseline"
+
     #: its decoder is untrained too: no reconstruction figure for the leaderboard
     save_reconstruction_figure = None
 
@@ -186,6 +194,8 @@ class PCAEncoder(Encoder):
         image_size: side of the downsampled image (must divide the image side).
         seed: seed of the randomized SVD solver (used on large inputs).
     """
+
+    family = "baseline"
 
     latent_dim: int = 16  # a hyperparameter here (shadows the base class's abstract property)
 

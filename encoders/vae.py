@@ -89,6 +89,8 @@ class MultimodalVAE(Encoder):
         progress: show a progress bar with the loss terms while training.
     """
 
+    family = "vae"
+
     latent_dim: int = 16  # a hyperparameter here (shadows the base class's abstract property)
 
     def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
