@@ -36,6 +36,8 @@ class Results:
     provenance: dict[str, Any] = field(default_factory=dict)
     missing: list[str] = field(default_factory=list)
     figures_from_store: dict[str, Path] = field(default_factory=dict)  # name → png path
+    #: (task, agent, metric) → encoder → leave-one-encoder-out predicted return
+    predictions: dict[tuple[str, str, str], dict[str, float]] = field(default_factory=dict)
 
 
 def collect_results(plan: Plan, store: Store) -> Results:
@@ -60,7 +62,8 @@ def collect_results(plan: Plan, store: Store) -> Results:
             info = art.read_json()
             res.encoder_rows.append({"task": tp.task, "encoder": enc_name,
                                      "latent_dim": info.get("latent_dim"),
-                                     "fit_time_s": info.get("fit_time_s")})
+                                     "fit_time_s": info.get("fit_time_s"),
+                                     "family": info.get("family") or _family(enc_name)})
             png = art.file("reconstructions.png")
             if png.is_file():
                 res.figures_from_store[f"reconstructions {enc_name}"] = png
@@ -79,7 +82,8 @@ def collect_results(plan: Plan, store: Store) -> Results:
         diag = store.get(tp.diagnostics.kind, tp.diagnostics.key)
         if diag is not None:
             res.diagnostics[tp.task] = diag.read_json()
-        for spec in (tp.random_dataset, tp.on_policy_dataset, tp.full_state):
+        for spec in (tp.random_dataset, tp.on_policy_dataset, tp.heldout_dataset,
+                     tp.full_state):
             if spec is not None:
                 art = store.get(spec.kind, spec.key)
                 if art is not None:
@@ -108,6 +112,59 @@ def _provenance(plan: Plan, metas: list[dict[str, Any]]) -> dict[str, Any]:
         "first_result": created[0] if created else None,
         "last_result": created[-1] if created else None,
     }
+
+
+def _family(encoder: str) -> str:
+    """An encoder's family from its class (records written before families were stored)."""
+    from repbench.registry import encoders
+
+    try:
+        return str(getattr(encoders.get(encoder), "family", "learned"))
+    except Exception:  # unknown or unimportable plugin: count it as learned
+        return "learned"
+
+
+def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
+                   ) -> tuple[pd.DataFrame, dict[tuple[str, str, str], dict[str, float]]]:
+    """The metric leaderboard (:func:`repbench.correlation.metric_leaderboard`) as a table,
+    ranked per task × agent by the within-learned-encoders Spearman ρ, then the all-encoder ρ;
+    and the leave-one-encoder-out predicted returns per (task, agent, metric)."""
+    from repbench.correlation import metric_leaderboard
+
+    families = {r["encoder"]: r.get("family") or _family(r["encoder"])
+                for r in res.encoder_rows}
+    for r in res.metric_rows:
+        families.setdefault(r["encoder"], _family(r["encoder"]))
+    rows, preds = metric_leaderboard(res.metric_rows, res.rl_rows, families,
+                                     res.provenance.get("directions", {}),
+                                     n_bootstrap=n_bootstrap, seed=seed)
+    df = pd.DataFrame(rows)
+    if not df.empty:
+        df = df.sort_values(["task", "agent", "spearman_learned", "spearman_all"],
+                            ascending=[True, True, False, False],
+                            na_position="last").reset_index(drop=True)
+    return df, preds
+
+
+def add_predicted_return(enc: pd.DataFrame, ranking: pd.DataFrame,
+                         predictions: dict[tuple[str, str, str], dict[str, float]]
+                         ) -> pd.DataFrame:
+    """Add ``<agent>_predicted_return`` (and ``<agent>_predicted_by``) to the encoder table:
+    each encoder's return predicted, leave-one-encoder-out, by the metric with the lowest
+    LOO error for that task and agent."""
+    if enc.empty or ranking.empty or "loo_rmse" not in ranking:
+        return enc
+    enc = enc.copy()
+    for (task, agent), grp in ranking.groupby(["task", "agent"]):
+        grp = grp[np.isfinite(grp["loo_rmse"])]
+        if grp.empty:
+            continue
+        best = str(grp.sort_values("loo_rmse").iloc[0]["metric"])
+        pred = predictions.get((str(task), str(agent), best), {})
+        mask = enc["task"] == task
+        enc.loc[mask, f"{agent}_predicted_return"] = enc.loc[mask, "encoder"].map(pred)
+        enc.loc[mask, f"{agent}_predicted_by"] = best
+    return enc
 
 
 def encoder_table(res: Results) -> pd.DataFrame:
@@ -177,6 +234,11 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     enc = encoder_table(res)
     met = metric_table(res)
+    ranking, predictions = metric_ranking(res)
+    if not ranking.empty and not met.empty:  # metrics.csv: the ranking's columns, its order
+        met = ranking.merge(met, on=["task", "agent", "metric"], how="left")
+        enc = add_predicted_return(enc, ranking, predictions)
+    res.predictions = predictions
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     with open(out_dir / "provenance.json", "w") as f:
