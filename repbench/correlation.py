@@ -176,8 +176,9 @@ def leave_one_out(metric_values: Mapping[str, float], mean_returns: Mapping[str,
     predicts the left-out one. Returns ``{"predictions": {encoder: value}, "loo_rmse",
     "loo_mae", "loo_rmse_ratio"}``; the ratio divides by the RMSE of predicting each left-out
     encoder by the others' mean return (< 1: the metric predicts better than knowing nothing).
-    NaN with fewer than 4 encoders (a line through 2 points extrapolates wildly). The direction does not change a line's predictions;
-    ``higher_is_better`` is accepted for symmetry with :func:`correlate`.
+    NaN with fewer than 4 encoders (a line through 2 points extrapolates wildly). The
+    direction does not change a line's predictions; ``higher_is_better`` is accepted for
+    symmetry with :func:`correlate`.
     """
     names = [e for e in metric_values if e in mean_returns
              and np.isfinite(metric_values[e]) and np.isfinite(mean_returns[e])]
