@@ -75,3 +75,12 @@ def test_run_stores_extra_arrays_and_rows(tmp_path: Path) -> None:
         assert out["rows"] == rows
         assert out["n_rows"] == (50 if rows == "on_policy" else 125)
         assert len(out["extras"]["bootstrap_replicates"]) > 0
+    html = (tmp_path / "lb" / "index.html").read_text()
+    assert html.index("Metric leaderboard") < html.index("Which metric predicts")
+    import pandas as pd
+
+    met = pd.read_csv(tmp_path / "lb" / "metrics.csv")
+    for col in ("spearman_learned", "spearman_all_p_holm", "spearman_learned_p_bh", "loo_rmse",
+                "cost_s"):
+        assert col in met.columns
+    assert (met["cost_s"] > 0).all() and (met["n_learned"] == 0).all()  # two baselines only
