@@ -7,6 +7,12 @@ positive correlation always means "the metric ranks encoders the way RL does". C
 intervals come from a two-level bootstrap: resample encoders with replacement, and within each
 drawn encoder resample its seeds, then recompute each coefficient (percentile interval).
 p-values are scipy's (t-test for Pearson, exact/asymptotic for Spearman and Kendall).
+
+:func:`metric_leaderboard` builds the metric leaderboard on top: the Spearman ρ over all encoders
+and within the learned encoders only (the baselines — oracle, untrained, blind — anchor any pooled
+coefficient), intervals that also draw each encoder's metric from its own bootstrap replicates,
+Holm and Benjamini–Hochberg adjusted p-values over all metric × agent tests (statsmodels), the
+leave-one-encoder-out error of predicting return from the metric, and the metric's cost.
 """
 
 from __future__ import annotations

@@ -2,9 +2,11 @@
 
 * ``encoders.csv`` — one row per task × encoder: every metric with its CI, and per agent the RL
   return (mean and t-interval over seeds) and success rate.
-* ``metrics.csv`` — one row per task × agent × metric: Pearson, Spearman and Kendall between the
-  (direction-adjusted) metric and the mean RL return across encoders, with bootstrap CIs and
-  p-values — "which metric predicts RL performance".
+* ``metrics.csv`` — one row per task × agent × metric, ranked: the metric leaderboard
+  (:func:`metric_ranking`: Spearman within the learned encoders and over all encoders with
+  intervals and Holm/BH-adjusted p-values, leave-one-encoder-out error, cost in seconds), then
+  Pearson, Spearman and Kendall over all encoders with bootstrap CIs and p-values — "which
+  metric predicts RL performance".
 * ``index.html`` — one self-contained page (see :mod:`repbench.report_html`).
 """
 
