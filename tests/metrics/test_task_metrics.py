@@ -132,11 +132,15 @@ def test_task_cmi_orders_hole_over_robot_copy_and_noise(peg: dict[str, np.ndarra
 def test_task_r2_gain_orders_hole_over_robot_copy_and_noise(peg: dict[str, np.ndarray]
                                                            ) -> None:
     v = {z: _run(task_r2_gain, peg, z).value for z in ("z_hole", "z_cubic", "z_tip", "z_random")}
-    # measured over seeds 0-4: hole 0.981..0.987, cubic 0.875..0.959, tip -0.75..-0.20,
-    # random -0.68..-0.22 (the MLP on z ⊕ r overfits the training episodes' holes when z is
-    # useless, so it generalizes worse than the robot state alone)
-    assert v["z_hole"] > 0.95 and v["z_cubic"] > 0.8
-    assert v["z_tip"] < 0.1 and v["z_random"] < 0.1
+    # measured over seeds 0-4: hole 1.16..1.67, cubic 1.08..1.57, tip -0.06..0.12,
+    # random -0.14..0.13 (above 1: the robot-only MLP extrapolates worse than a constant to
+    # held-out episodes, R² about -0.3 here)
+    assert v["z_hole"] > 1.0 and v["z_cubic"] > 0.9
+    assert abs(v["z_tip"]) < 0.25 and abs(v["z_random"]) < 0.25
+    const = task_r2_gain(np.zeros((len(peg["episode"]), 3)), peg["robot_state"], peg["episode"],
+                         0, n_bootstrap=0, robot_state=peg["robot_state"],
+                         task_state=peg["task_state"])
+    assert const.value == 0.0  # no varying z column: the same model on the same inputs
 
 
 def test_task_probe_is_form_sensitive(peg: dict[str, np.ndarray]) -> None:
