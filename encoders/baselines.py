@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset
-from repbench.encoder import Encoder
+from repbench.encoder import Encoder, TrueStateEncoder
 from repbench.errors import ConfigError, DataError
 from repbench_encoders.vae import MultimodalVAE
 
@@ -35,33 +35,13 @@ def _check_width(name: str, modality: str, arr: np.ndarray, width: int) -> None:
                         f"time, got {list(arr.shape)}")
 
 
-class OracleEncoder(Encoder):
-    """The true state z° itself (float32); its latent size is the task's state size."""
+class OracleEncoder(TrueStateEncoder):
+    """The true state z° itself (float32); its latent size is the task's state size.
+
+    The implementation is :class:`repbench.encoder.TrueStateEncoder` (defined once, in the core).
+    """
 
     family = "baseline"
-
-    required_modalities = (TRUE_STATE,)
-
-    def __init__(self) -> None:
-        pass
-
-    def fit(self, dataset: Dataset) -> OracleEncoder:
-        """Record the true-state size."""
-        self.state_dim_ = int(dataset.true_state.shape[1])
-        return self
-
-    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
-        """Return ``observations["true_state"]`` as float32 [N, S]."""
-        self.check_is_fitted()
-        z = self.check_observations(observations)[TRUE_STATE]
-        _check_width(type(self).__name__, TRUE_STATE, z, self.state_dim_)
-        return np.array(z, dtype=np.float32, copy=True)
-
-    @property
-    def latent_dim(self) -> int:
-        """S, known after ``fit``."""
-        self.check_is_fitted()
-        return self.state_dim_
 
 
 class OracleTaskEncoder(Encoder):
@@ -204,6 +184,16 @@ class PCAEncoder(Encoder):
         self.image_size = image_size
         self.seed = seed
 
+    def check_params(self) -> None:
+        """latent_dim and image_size must be positive integers."""
+        name = type(self).__name__
+        if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
+            raise ConfigError(f"{name}: latent_dim must be a positive integer, "
+                              f"got {self.latent_dim!r}")
+        if not isinstance(self.image_size, (int, np.integer)) or self.image_size < 1:
+            raise ConfigError(f"{name}: image_size must be a positive integer, "
+                              f"got {self.image_size!r}")
+
     def _features(self, observations: Mapping[str, Any]) -> np.ndarray:
         batch = self.check_observations(observations)
         img = batch[IMAGE]
@@ -226,12 +216,7 @@ class PCAEncoder(Encoder):
         from sklearn.decomposition import PCA
 
         name = type(self).__name__
-        if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
-            raise ConfigError(f"{name}: latent_dim must be a positive integer, "
-                              f"got {self.latent_dim!r}")
-        if not isinstance(self.image_size, (int, np.integer)) or self.image_size < 1:
-            raise ConfigError(f"{name}: image_size must be a positive integer, "
-                              f"got {self.image_size!r}")
+        self.check_params()
         x = self._features(dataset.obs(with_true_state=False))
         if self.latent_dim > min(x.shape):
             raise ConfigError(

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
+from repbench import devices
 from repbench.dataset import FT, IMAGE, LAST_ACTION, PROPRIO, Dataset
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError, TrainingDivergedError
@@ -48,14 +49,9 @@ LOSS_TERMS = ("recon", "kl", "success", "pred_z", "pred_im", "smooth")
 
 
 def resolve_device(device: str) -> torch.device:
-    """``"auto"`` → CUDA when present, else CPU; anything else as given."""
-    if device == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    try:
-        return torch.device(device)
-    except RuntimeError as exc:
-        raise ConfigError(f"device {device!r} is not a torch device ({exc}); use 'auto', "
-                          "'cpu' or 'cuda'") from None
+    """``"auto"`` → CUDA when present, else CPU; anything else as given (one rule for all:
+    :func:`repbench.devices.resolve_device`)."""
+    return torch.device(devices.resolve_device(device))
 
 
 def gaussian_kl(mu_q: torch.Tensor, log_std_q: torch.Tensor, mu_p: torch.Tensor,
@@ -120,7 +116,8 @@ class MultimodalVAE(Encoder):
         """Whether a loss term needs pairs (n, n+1)."""
         return self.pred_z_weight > 0 or self.pred_im_weight > 0 or self.smooth_weight > 0
 
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
+        """Raise ConfigError for an invalid hyperparameter (also called at plan time)."""
         name = type(self).__name__
         if not isinstance(self.latent_dim, (int, np.integer)) or self.latent_dim < 1:
             raise ConfigError(f"{name}: latent_dim must be a positive integer, "
@@ -141,7 +138,7 @@ class MultimodalVAE(Encoder):
     # -- fitting -------------------------------------------------------------------------------
     def fit(self, dataset: Dataset) -> MultimodalVAE:
         """Train on ``dataset`` (image, ft, proprio, last_action; action and success labels)."""
-        self._check_params()
+        self.check_params()
         name = type(self).__name__
         for m in (IMAGE, FT, PROPRIO, LAST_ACTION):
             if m not in dataset.observations:

@@ -117,6 +117,34 @@ def learning_curves(res: Any, path: Path) -> Path | None:
     return save_figure(fig, path)
 
 
+def privileged_curve(res: Any, path: Path) -> Path | None:
+    """Success rate and return of the privileged agent during training (its kept step
+    marked)."""
+    runs = {label: info for label, info in res.provenance.get("datasets", {}).items()
+            if info.get("curve_steps")}
+    if not runs:
+        return None
+    fig, (ax_s, ax_r) = plt.subplots(1, 2, figsize=(8, 3))
+    for label, info in sorted(runs.items()):
+        steps = info["curve_steps"]
+        ax_s.plot(steps, info["curve_success"], marker=".", label=label)
+        ax_r.plot(steps, info["curve_return"], marker=".", label=label)
+        kept = info.get("extras", {}).get("kept_step")
+        if kept is not None:
+            for ax in (ax_s, ax_r):
+                ax.axvline(kept, color="grey", lw=0.8, ls=":")
+    ax_s.set_ylim(-0.03, 1.03)
+    ax_s.set_ylabel("success rate", fontsize=8)
+    ax_r.set_ylabel("return", fontsize=8)
+    for ax in (ax_s, ax_r):
+        ax.set_xlabel("environment steps", fontsize=8)
+        ax.tick_params(labelsize=7)
+    ax_r.legend(fontsize=6)
+    fig.suptitle("Privileged agent during training (dotted: the kept policy)", fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def _smoothness_extras(res: Any) -> dict[str, Mapping[str, Any]]:
     return {r["encoder"]: r.get("extras") or {} for r in res.metric_rows
             if r["metric"] == "smoothness"}
@@ -201,7 +229,7 @@ def true_state_diffs(res: Any, path: Path) -> Path | None:
 def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
     """Leave-one-encoder-out predicted return (best metric by LOO error) vs actual mean return,
     one panel per task × agent, with the seeds' 95 % t-interval and the diagonal."""
-    preds = getattr(res, "predictions", None) or {}
+    preds = getattr(res, "loo_predictions", None) or {}
     if ranking is None or ranking.empty or "loo_rmse" not in ranking or not preds:
         return None
     best = (ranking[np.isfinite(ranking["loo_rmse"])].sort_values("loo_rmse")
@@ -250,6 +278,7 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
             predicted, "predicted_vs_actual"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
+        "Privileged agent learning curve": (privileged_curve, "privileged_curve"),
         "Latent distance vs time offset (Fig. 5a)": (latent_distance, "latent_distance"),
         "Encoder smoothness histogram (Fig. 5b)": (smoothness_hist, "smoothness_hist"),
         "True-state differences (Fig. 6a)": (true_state_diffs, "true_state_diffs"),

@@ -3,6 +3,20 @@
 A suite is a TOML file. ``smoke``, ``quick`` and ``paper`` ship inside the package
 (``repbench/suites/``); any other path is read as a user's suite file. Files are validated on
 load; an error names the file and the field.
+
+Every section and every size has a documented default (the ``quick`` suite's sizes), so a user's
+suite file needs only what differs::
+
+    tasks = ["PegInHole-v0"]
+    encoders = ["oracle", "my_encoder"]
+    metrics = ["ksg", "regression"]
+    [dataset]
+    random_episodes = 10      # everything else as in the defaults below
+
+Defaults: ``agents = ["sac"]``, ``seeds = [0, 1, 2]``; ``[dataset]`` 25 × 300 random steps,
+10 × 100 on-policy steps, seed 0; ``[encoder_training]`` latent_dim 16, 3 epochs, batch 64,
+seed 0; ``[rl]`` 6000 train steps, 10 evaluation episodes, 5 curve points, 20 000 steps for the
+full-state agent; ``[metric_settings]`` 100 bootstrap resamples, seed 0.
 """
 
 from __future__ import annotations
@@ -26,11 +40,13 @@ class _Strict(BaseModel):
 class DatasetConfig(_Strict):
     """Sizes of the encoder-training datasets."""
 
-    random_episodes: PositiveInt = Field(description="backwards-exploration episodes "
-                                                     "(one per hole position in the paper: 25)")
-    random_steps: PositiveInt = Field(description="steps per random episode (paper: 300)")
-    on_policy_episodes: int = Field(ge=0, description="episodes by the full-state agent")
-    on_policy_steps: PositiveInt = Field(description="steps per on-policy episode")
+    random_episodes: PositiveInt = Field(default=25, description="backwards-exploration "
+                                         "episodes (one per hole position in the paper: 25)")
+    random_steps: PositiveInt = Field(default=300, description="steps per random episode "
+                                                               "(paper: 300)")
+    on_policy_episodes: int = Field(default=10, ge=0,
+                                    description="episodes by the full-state agent")
+    on_policy_steps: PositiveInt = Field(default=100, description="steps per on-policy episode")
     seed: int = Field(default=0, description="collection seed")
     heldout_episodes: int = Field(default=0, ge=0, description=(
         "episodes of a separate backwards-exploration dataset the metrics are computed on "
@@ -45,7 +61,7 @@ class EncoderTrainingConfig(_Strict):
     """Shared encoder-training settings (per-encoder overrides in ``encoder_params``)."""
 
     latent_dim: PositiveInt = Field(default=16, description="latent size D (paper: 16)")
-    epochs: PositiveInt = Field(description="training epochs over the random dataset")
+    epochs: PositiveInt = Field(default=3, description="training epochs over the random dataset")
     batch_size: PositiveInt = Field(default=64, description="minibatch size")
     seed: int = Field(default=0, description="encoder initialisation/training seed")
 
@@ -53,13 +69,19 @@ class EncoderTrainingConfig(_Strict):
 class RLConfig(_Strict):
     """Downstream-RL budgets."""
 
-    train_steps: PositiveInt = Field(description="environment steps per training run "
-                                                 "(paper: 150k)")
-    eval_episodes: PositiveInt = Field(description="fixed evaluation episodes "
-                                                   "(paper: 20k steps)")
+    train_steps: PositiveInt = Field(default=6000, description="environment steps per training "
+                                                               "run (paper: 150k)")
+    eval_episodes: PositiveInt = Field(default=10, description="fixed evaluation episodes "
+                                                               "(paper: 20k steps)")
     curve_points: PositiveInt = Field(default=5, description="learning-curve evaluations")
-    full_state_train_steps: PositiveInt = Field(description="steps for the full-state SAC agent "
-                                                            "that collects the on-policy dataset")
+    full_state_train_steps: PositiveInt = Field(default=20000, description="steps for the "
+                                                "privileged SAC agent that collects the "
+                                                "on-policy dataset")
+    privileged_encoder: str = Field(default="oracle_task", description="what the privileged "
+                                    "agent observes beside the robot state")
+    privileged_params: dict[str, Any] = Field(
+        default_factory=dict, description="SAC parameters of the privileged agent, over "
+        "repbench.rl.full_state.PRIVILEGED_AGENT_PARAMS")
 
 
 class MetricsConfig(_Strict):
@@ -77,11 +99,11 @@ class Suite(_Strict):
     tasks: list[str] = Field(min_length=1)
     encoders: list[str] = Field(min_length=1)
     metrics: list[str] = Field(min_length=1)
-    agents: list[str] = Field(min_length=1)
-    seeds: list[int] = Field(min_length=1, description="RL seeds")
-    dataset: DatasetConfig
-    encoder_training: EncoderTrainingConfig
-    rl: RLConfig
+    agents: list[str] = Field(default=["sac"], min_length=1)
+    seeds: list[int] = Field(default=[0, 1, 2], min_length=1, description="RL seeds")
+    dataset: DatasetConfig = DatasetConfig()
+    encoder_training: EncoderTrainingConfig = EncoderTrainingConfig()
+    rl: RLConfig = RLConfig()
     metric_settings: MetricsConfig = MetricsConfig()
     task_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     heldout_task_params: dict[str, dict[str, Any]] = Field(default_factory=dict, description=(

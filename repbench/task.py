@@ -24,6 +24,11 @@ Policy = Callable[[Mapping[str, np.ndarray]], np.ndarray]
 class Task(abc.ABC):
     """Base class of all tasks. The constructor stores hyperparameters only."""
 
+    #: Declared version of what this plugin computes. Part of every stage key and result record
+    #: in place of the source code: bump it when a change alters results; editing docstrings or
+    #: refactoring needs no bump. Older records then show as stale (:mod:`repbench.records`).
+    version: ClassVar[int] = 0
+
     #: Versioned id, as in gymnasium (``PegInHole-v0``).
     task_id: ClassVar[str]
 

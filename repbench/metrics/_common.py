@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import stats
 
+from repbench.devices import resolve_device
 from repbench.errors import DataError
 
 __all__ = [
@@ -119,15 +120,6 @@ def episode_bootstrap_replicates(statistic: Callable[[np.ndarray], float], episo
 def seed_from(rng: np.random.Generator) -> int:
     """A 31-bit integer seed drawn from ``rng`` (for torch / scikit-learn)."""
     return int(rng.integers(0, 2**31 - 1))
-
-
-def resolve_device(device: str) -> str:
-    """``"auto"`` → ``"cuda"`` when available, else ``"cpu"``."""
-    if device != "auto":
-        return device
-    import torch
-
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def check_params(name: str, **checks: tuple[bool, str]) -> None:

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.special import digamma
 
+from repbench.devices import torch_threads
 from repbench.errors import DataError
 from repbench.metric import MetricResult, metric
 from repbench.metrics._common import (
@@ -277,19 +278,13 @@ def mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.
     too small to gain from more, and extra threads slow it down on a busy machine); the
     previous setting is restored afterwards. ``None`` leaves torch's setting alone.
     """
-    import torch
-
-    previous = torch.get_num_threads()
-    if num_threads is not None and resolve_device(device) == "cpu":
-        torch.set_num_threads(int(num_threads))
-    try:
+    threads = num_threads if resolve_device(device) == "cpu" else None
+    with torch_threads(threads):
         return _mine(z, z_true, episode, rng, hidden=hidden, learning_rate=learning_rate,
                      batch_size=batch_size, ema_decay=ema_decay, steps=steps,
                      test_fraction=test_fraction, eval_every=eval_every,
                      average_last=average_last, n_marginal=n_marginal, device=device,
                      progress=progress, n_bootstrap=n_bootstrap)
-    finally:
-        torch.set_num_threads(previous)
 
 
 def _mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator, *,

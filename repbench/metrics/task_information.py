@@ -249,8 +249,9 @@ def task_r2_gain(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
     ``task_probe``. A z with no varying column scores exactly 0 (the same MLP on the same
     inputs). The gain can exceed 1: on held-out episodes an MLP on the robot state alone can
     extrapolate worse than a constant (measured on PegInHole-v0: R² −0.68); that baseline is
-    the same for every encoder of a run, so it shifts values without changing their ranking. CI: percentile bootstrap over held-out episodes of the difference
-    (models held fixed). Extras: both R² values. ``z_true`` is not used.
+    the same for every encoder of a run, so it shifts values without changing their ranking.
+    CI: percentile bootstrap over held-out episodes of the difference (models held fixed).
+    Extras: both R² values. ``z_true`` is not used.
     """
     from repbench.dataset import episode_split
 

@@ -21,13 +21,13 @@ from __future__ import annotations
 import copy
 import math
 import time
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from repbench.agent import Agent, AgentResult
+from repbench.devices import resolve_device, torch_threads
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, TrainingDivergedError
 from repbench.rl.wrappers import (
@@ -64,31 +64,6 @@ def spread(items: Sequence[Any], k: int) -> list[Any]:
     if k >= len(items):
         return list(items)
     return [items[int(i)] for i in np.linspace(0, len(items) - 1, k).round()]
-
-
-def resolve_device(device: str) -> str:
-    """``"auto"`` → ``"cuda"`` if torch sees a GPU, else ``"cpu"``; anything else unchanged."""
-    if device == "auto":
-        import torch
-
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    return device
-
-
-@contextmanager
-def torch_threads(n: int | None) -> Iterator[None]:
-    """Set torch's intra-op thread count inside the block and restore it afterwards."""
-    if n is None:
-        yield
-        return
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 def evaluate(model: Any, env: Any, resets: Sequence[int | Mapping[str, Any]], *,
