@@ -33,7 +33,7 @@ def knn_mse_terms(z: np.ndarray, z_true: np.ndarray, k: int = 5) -> np.ndarray:
     return ((z_true[nb] - z_true[:, None, :]) ** 2).sum(-1).mean(1)
 
 
-@metric("coherence", higher_is_better=False,
+@metric("coherence", higher_is_better=False, version=1,  # v1: standardized z by default
         description="KNN-MSE (Raffin 2018): mean squared z° distance to the k=5 nearest in z")
 def coherence(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
               *, k: int = 5, standardize_true: bool = True, standardize_z: bool = True,
