@@ -50,6 +50,10 @@ class NetworkSpec:
     """Hidden (and output) size of the force and proprioception MLPs (paper: 16)."""
     fusion_hidden: int = 64
     """Fusion layer size (paper: 64)."""
+    modalities: tuple[str, ...] = ("image", "ft", "proprio")
+    """Input modalities the encoder reads (per-modality ablations read fewer)."""
+    decoder: bool = True
+    """Build the image/force decoder (VAE family); contrastive and supervised encoders do not."""
     success_head: bool = False
     pred_z_head: bool = False
     pred_im_head: bool = False
@@ -58,6 +62,7 @@ class NetworkSpec:
         d = asdict(self)
         d["conv_channels"] = list(self.conv_channels)
         d["conv_strides"] = list(self.conv_strides)
+        d["modalities"] = list(self.modalities)
         return d
 
     @classmethod
@@ -65,6 +70,8 @@ class NetworkSpec:
         d = dict(d)
         d["conv_channels"] = tuple(d["conv_channels"])  # type: ignore[arg-type]
         d["conv_strides"] = tuple(d["conv_strides"])  # type: ignore[arg-type]
+        if "modalities" in d:  # absent in files written before the per-modality ablations
+            d["modalities"] = tuple(d["modalities"])  # type: ignore[arg-type]
         return cls(**d)  # type: ignore[arg-type]
 
 
@@ -133,7 +140,8 @@ class ImageDecoder(nn.Module):
 
 
 class MultimodalVAENet(nn.Module):
-    """The full network: encoder, decoder and the optional auxiliary heads."""
+    """The full network: encoder (the branches of ``spec.modalities``), decoder (when
+    ``spec.decoder``) and the optional auxiliary heads."""
 
     def __init__(self, spec: NetworkSpec) -> None:
         super().__init__()
@@ -141,14 +149,26 @@ class MultimodalVAENet(nn.Module):
         side = feature_map_size(spec)
         n_img = spec.conv_channels[-1] * side * side
         h, d, a = spec.modality_hidden, spec.latent_dim, spec.action_dim
-        self.image_enc = ImageEncoder(spec)
-        self.ft_enc = _mlp(spec.ft_dim, h, h, out_relu=True)
-        self.proprio_enc = _mlp(spec.proprio_dim, h, h, out_relu=True)
-        self.fusion = _mlp(n_img + 2 * h, spec.fusion_hidden, 2 * d)
+        unknown = set(spec.modalities) - {"image", "ft", "proprio"}
+        if unknown or not spec.modalities:
+            raise ValueError(f"modalities must be a non-empty subset of image, ft, proprio; "
+                             f"got {spec.modalities}")
+        # branches are built in a fixed order, so a full-input network initializes exactly as
+        # before the per-modality option existed
+        self.image_enc = ImageEncoder(spec) if "image" in spec.modalities else None
+        self.ft_enc = _mlp(spec.ft_dim, h, h, out_relu=True) if "ft" in spec.modalities else None
+        self.proprio_enc = (_mlp(spec.proprio_dim, h, h, out_relu=True)
+                            if "proprio" in spec.modalities else None)
+        n_in = ((n_img if self.image_enc is not None else 0)
+                + (h if self.ft_enc is not None else 0)
+                + (h if self.proprio_enc is not None else 0))
+        self.fusion = _mlp(n_in, spec.fusion_hidden, 2 * d)
         # decoder
-        self.dec_hidden = nn.Sequential(nn.Linear(d + a, spec.fusion_hidden), nn.ReLU())
-        self.image_dec = ImageDecoder(spec)
-        self.ft_dec = _mlp(spec.fusion_hidden, h, spec.ft_dim)
+        self.dec_hidden = self.image_dec = self.ft_dec = None
+        if spec.decoder:
+            self.dec_hidden = nn.Sequential(nn.Linear(d + a, spec.fusion_hidden), nn.ReLU())
+            self.image_dec = ImageDecoder(spec)
+            self.ft_dec = _mlp(spec.fusion_hidden, h, spec.ft_dim)
         # auxiliary heads
         self.success_head = _mlp(d, spec.fusion_hidden, 2) if spec.success_head else None
         self.pred_z_head = _mlp(d + a, spec.fusion_hidden, 2 * d) if spec.pred_z_head else None
@@ -157,15 +177,20 @@ class MultimodalVAENet(nn.Module):
             if spec.pred_im_head else None
         )
 
-    def encode(self, image: torch.Tensor, ft: torch.Tensor, proprio: torch.Tensor
-               ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Normalized inputs → (μ_z, log σ_z)."""
-        feats = torch.cat([self.image_enc(image), self.ft_enc(ft), self.proprio_enc(proprio)], 1)
+    def encode(self, image: torch.Tensor | None, ft: torch.Tensor | None,
+               proprio: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Normalized inputs → (μ_z, log σ_z). Inputs of modalities the network does not read
+        are ignored (pass None)."""
+        parts = [branch(x) for branch, x in ((self.image_enc, image), (self.ft_enc, ft),
+                                             (self.proprio_enc, proprio)) if branch is not None]
+        feats = torch.cat(parts, 1)
         mu, log_std = self.fusion(feats).chunk(2, dim=1)
         return mu, log_std.clamp(LOG_STD_MIN, LOG_STD_MAX)
 
     def decode(self, z: torch.Tensor, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``z ⊕ torque input`` → (image in [0, 1] scale, standardized force)."""
+        assert self.dec_hidden is not None and self.image_dec is not None
+        assert self.ft_dec is not None
         hidden = self.dec_hidden(torch.cat([z, action], 1))
         return self.image_dec(hidden), self.ft_dec(hidden)
 
@@ -178,7 +203,7 @@ class MultimodalVAENet(nn.Module):
 
     def predict_next_image(self, z: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
         """Image at n+1 from z_n and a_n: an extra FC layer, then the decoder's image branch."""
-        assert self.pred_im_fc is not None
+        assert self.pred_im_fc is not None and self.image_dec is not None
         return self.image_dec(self.pred_im_fc(torch.cat([z, action], 1)))
 
     def success_logits(self, z: torch.Tensor) -> torch.Tensor:

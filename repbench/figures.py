@@ -224,6 +224,39 @@ def true_state_diffs(res: Any, path: Path) -> Path | None:
     return save_figure(fig, path)
 
 
+def loss_curves(history: list[Mapping[str, Any]], path: str | os.PathLike[str],
+                title: str = "", best_epoch: int | None = None) -> Path:
+    """One panel per loss term (and the weighted total): train and held-out value per epoch,
+    the kept (best held-out) epoch marked. ``history`` is an encoder's ``history_``: dicts with
+    ``epoch`` and the term dicts ``train`` and ``heldout``."""
+    terms = [k for k in history[0]["train"]
+             if any(h["train"].get(k) or h.get("heldout", {}).get(k) for h in history)]
+    fig, axes = plt.subplots(1, len(terms), figsize=(2.8 * len(terms), 2.6), squeeze=False)
+    epochs = [h["epoch"] for h in history]
+    for ax, term in zip(axes[0], terms, strict=True):
+        ax.plot(epochs, [h["train"].get(term, np.nan) for h in history], "o-", ms=3,
+                label="train")
+        held = [h.get("heldout", {}).get(term, np.nan) for h in history]
+        if np.isfinite(held).any():
+            ax.plot(epochs, held, "s-", ms=3, label="held-out episodes")
+        if best_epoch:
+            ax.axvline(best_epoch, color="grey", ls=":", lw=1, label=f"kept: epoch {best_epoch}")
+        vals = np.asarray([h["train"].get(term, np.nan) for h in history] + held, float)
+        if term == "loss" or (np.nanmin(vals) > 0 and np.nanmax(vals) / np.nanmin(vals) > 30):
+            ax.set_yscale("log")
+        ax.set_title(term, fontsize=9)
+        ax.set_xlabel("epoch", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+_STORE_FIGURE_TITLES = {"reconstructions": "Reconstructions: {} (appendix figure)",
+                        "loss_curves": "Training curves: {} (train and held-out loss per epoch)"}
+
+
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
     """Render every figure that the results support; name → PNG path."""
 
@@ -247,5 +280,6 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
         dest = out_dir / f"{name.replace(' ', '_')}.png"
         dest.parent.mkdir(parents=True, exist_ok=True)
         dest.write_bytes(src.read_bytes())
-        out[f"Reconstructions: {name.split(' ', 1)[1]} (appendix figure)"] = dest
+        kind, enc = name.split(" ", 1)
+        out[_STORE_FIGURE_TITLES.get(kind, kind + ": {}").format(enc)] = dest
     return out

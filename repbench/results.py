@@ -151,11 +151,10 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
             res.encoder_rows.append({"task": task, "encoder": enc,
                                      "latent_dim": values.get("latent_dim"),
                                      "fit_time_s": values.get("fit_time_s")})
-            png = (values.get("files") or {}).get("reconstructions")
-            if png and r.get("_path"):
-                path = Path(r["_path"]).parent / png
-                if path.is_file():
-                    res.figures_from_store[f"reconstructions {enc}"] = path
+            for stem, png in (values.get("files") or {}).items():
+                path = Path(r["_path"]).parent / png if r.get("_path") else None
+                if path is not None and path.is_file():
+                    res.figures_from_store[f"{stem} {enc}"] = path
         elif kind == "metric":
             name = r["metric"]["name"]
             directions[name] = bool(values.get("higher_is_better", True))

@@ -110,15 +110,38 @@ def _run_encoder(spec: StageSpec, store: Store, w: Any) -> None:
     dataset = _load_dataset(store, spec.inputs["dataset"][1])
     start = time.time()
     enc = cls(**cfg["params"]).fit(dataset)
+    fit_time = time.time() - start
     enc.save(w.file("encoder.pt"))
-    w.write_json({"latent_dim": int(enc.latent_dim), "fit_time_s": time.time() - start,
-                  "params": enc.get_params()})
+    w.write_json({"latent_dim": int(enc.latent_dim), "fit_time_s": fit_time,
+                  "params": enc.get_params(), **_save_fit_history(enc, cfg["encoder"], w)})
     figure = getattr(enc, "save_reconstruction_figure", None)
     if callable(figure):
         try:
             figure(dataset, w.file("reconstructions.png"))
         except Exception as exc:  # a figure must never lose a trained encoder
             w.extra_meta["figure_error"] = str(exc)
+
+
+def _save_fit_history(enc: Any, name: str, w: Any) -> dict[str, Any]:
+    """Store an encoder's per-epoch loss history (``history_``: dicts with ``epoch``, ``train``
+    and ``heldout`` term dicts) as ``fit_history.json`` and ``loss_curves.png``; return a
+    summary (epochs run, best epoch, held-out loss there) for the encoder's record."""
+    history = getattr(enc, "history_", None)
+    if not history or not all(isinstance(h, dict) and "train" in h for h in history):
+        return {}
+    w.file("fit_history.json").write_text(json.dumps(history))
+    best = int(getattr(enc, "best_epoch_", len(history)) or len(history))
+    heldout = history[best - 1].get("heldout", {}) if 0 < best <= len(history) else {}
+    try:
+        from repbench.figures import loss_curves
+
+        loss_curves(history, w.file("loss_curves.png"), title=f"{name}: loss per epoch",
+                    best_epoch=best)
+    except Exception as exc:  # a figure must never lose a trained encoder
+        w.extra_meta["loss_figure_error"] = str(exc)
+    return {"epochs_run": len(history), "best_epoch": best,
+            "heldout_loss": heldout.get("loss"), "train_loss": history[best - 1]["train"].get(
+                "loss") if 0 < best <= len(history) else None}
 
 
 def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
@@ -217,8 +240,11 @@ def _write_record(spec: StageSpec, store: Store, w: Any, wall_s: float, cpu_s: f
     assert spec.record is not None
     result = w.file("result.json")
     values = json.loads(result.read_text()) if result.is_file() else {}
-    if spec.kind == ENCODER and w.file("reconstructions.png").is_file():
-        values["files"] = {"reconstructions": "reconstructions.png"}
+    if spec.kind == ENCODER:
+        files = {stem: f"{stem}.png" for stem in ("reconstructions", "loss_curves")
+                 if w.file(f"{stem}.png").is_file()}
+        if files:
+            values["files"] = files
     checksums = {}
     for name, key in sorted(spec.record.get("data_stages", {}).items()):
         if (art := store.get(DATASET, key, verify=False)) is not None:

@@ -26,7 +26,15 @@ from pathlib import Path
 from typing import Any
 
 import tomllib
-from pydantic import BaseModel, ConfigDict, Field, PositiveInt, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PositiveInt,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from repbench.errors import ConfigError
 
@@ -54,9 +62,21 @@ class EncoderTrainingConfig(_Strict):
     """Shared encoder-training settings (per-encoder overrides in ``encoder_params``)."""
 
     latent_dim: PositiveInt = Field(default=16, description="latent size D (paper: 16)")
-    epochs: PositiveInt = Field(default=3, description="training epochs over the random dataset")
+    epochs: PositiveInt = Field(default=10, description="maximum training epochs over the random "
+                                "dataset (early stopping may end training sooner)")
+    patience: int = Field(default=3, ge=0, description="stop after this many epochs without a "
+                                                       "held-out improvement (0: train all epochs)")
+    validation_fraction: float = Field(default=0.2, ge=0.0, lt=1.0,
+                                       description="share of whole episodes held out for the "
+                                                   "held-out loss curve and early stopping")
     batch_size: PositiveInt = Field(default=64, description="minibatch size")
     seed: int = Field(default=0, description="encoder initialisation/training seed")
+
+    @model_validator(mode="after")
+    def _early_stopping_needs_heldout(self) -> EncoderTrainingConfig:
+        if self.patience > 0 and self.validation_fraction == 0:
+            raise ValueError("patience > 0 (early stopping) needs validation_fraction > 0")
+        return self
 
 
 class RLConfig(_Strict):

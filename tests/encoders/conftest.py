@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from repbench.dataset import Dataset
@@ -30,3 +31,24 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="session")
+def peg_like_dataset() -> Dataset:
+    """The tiny synthetic dataset widened to the peg-in-hole's layout (proprio [N, 20] with the
+    tip position at 14:17 and velocity at 17:20, z° [N, 16] with the hole at 14:16) and naming
+    ``PegInHole-v0`` in its metadata, so ``Task.task_state`` works without a simulator."""
+    d = synthetic_dataset(n_episodes=3, steps=8, seed=1)
+    n = len(d)
+    proprio = np.zeros((n, 20), np.float32)
+    proprio[:, :4] = d.observations["proprio"]
+    proprio[:, 14:16] = d.true_state[:, 0:2] * 0.1
+    proprio[:, 16] = 0.9
+    proprio[:, 17:19] = d.true_state[:, 2:4] * 0.1
+    z_true = np.zeros((n, 16), np.float32)
+    z_true[:, :4] = d.true_state[:, :4]
+    z_true[:, 14:16] = d.true_state[:, 4:6] * 0.1
+    obs = {**d.observations, "proprio": proprio}
+    return Dataset(observations=obs, action=d.action, true_state=z_true, reward=d.reward,
+                   success=d.success, episode=d.episode, step=d.step,
+                   metadata={"task": "PegInHole-v0", "params": {}})

@@ -14,17 +14,33 @@ PAPER_ENCODERS = [
     "pred_im", "pred_im_lowkl", "smooth", "smooth_lowkl",
 ]
 BASELINES = ["oracle", "random", "pca", "proprio_only"]
+ABLATIONS = ["vae_lowkl_d4", "vae_lowkl_d64", "vae_lowkl_image", "vae_lowkl_ft_proprio",
+             "time_contrastive", "curl", "supervised", "supervised_task"]
+#: encoders whose objective needs a registered task's task_state (not the synthetic data's)
+NEEDS_TASK = {"supervised_task"}
 
 
 def test_all_encoders_registered() -> None:
     names = set(repbench.encoders.names())
-    assert set(PAPER_ENCODERS + BASELINES) <= names
+    assert set(PAPER_ENCODERS + BASELINES + ABLATIONS) <= names
 
 
 @pytest.mark.parametrize("name", repbench.encoders.names())
-def test_registered_encoder_conforms(name: str, tiny_dataset: repbench.Dataset) -> None:
-    enc = check_encoder(name, tiny_dataset)
+def test_registered_encoder_conforms(name: str, request: pytest.FixtureRequest) -> None:
+    data = request.getfixturevalue("peg_like_dataset" if name in NEEDS_TASK else "tiny_dataset")
+    enc = check_encoder(name, data)
     assert enc.is_fitted
+
+
+@pytest.mark.parametrize("name", sorted(set(repbench.encoders.names()) - NEEDS_TASK))
+def test_registered_encoder_conforms_with_early_stopping(name: str,
+                                                          tiny_dataset: repbench.Dataset) -> None:
+    """The suites' training settings (held-out episodes, patience) work for every encoder."""
+    from repbench.plan import accepted_kwargs
+
+    cls = repbench.encoders.get(name)
+    params = accepted_kwargs(cls, {"epochs": 2, "patience": 1, "validation_fraction": 0.34})
+    check_encoder(name, tiny_dataset, **params)
 
 
 def test_check_encoder_accepts_instance_and_class(tiny_dataset: repbench.Dataset) -> None:

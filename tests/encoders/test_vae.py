@@ -76,7 +76,7 @@ def test_every_loss_term_is_trained(tiny_dataset: Dataset) -> None:
     small_dataset = tiny_dataset
     enc = MultimodalVAE(kl_weight=0.1, success_weight=0.1, pred_z_weight=1.0,
                         pred_im_weight=1e-4, smooth_weight=0.1, **FAST).fit(small_dataset)
-    terms = enc.history_[-1]
+    terms = enc.history_[-1]["train"]
     for key in ("recon", "kl", "success", "pred_z", "pred_im", "smooth"):
         assert np.isfinite(terms[key]) and terms[key] > 0, (key, terms)
     rec = enc.reconstruct(small_dataset.obs(np.arange(5)))
