@@ -41,6 +41,8 @@ class OracleEncoder(TrueStateEncoder):
     The implementation is :class:`repbench.encoder.TrueStateEncoder` (defined once, in the core).
     """
 
+    family = "baseline"
+
 
 class OracleTaskEncoder(Encoder):
     """The task-frame state: z° in the form a controller needs (the upper bound of the suite).
@@ -57,6 +59,8 @@ class OracleTaskEncoder(Encoder):
         task: the registered task whose ``task_state`` defines z; ``None`` takes the task
             named in the fitting dataset's metadata.
     """
+
+    family = "baseline"
 
     required_modalities = (PROPRIO, TRUE_STATE)
 
@@ -117,6 +121,8 @@ def accepted_params(cls: type, params: Mapping[str, Any]) -> dict[str, Any]:
 class ProprioOnlyEncoder(Encoder):
     """Robot state only (standardized proprioception), no vision or force."""
 
+    family = "baseline"
+
     required_modalities = (PROPRIO,)
 
     def __init__(self) -> None:
@@ -149,6 +155,8 @@ class RandomEncoder(MultimodalVAE):
     Fitting only computes the input normalization statistics; ``encode`` returns μ_z.
     """
 
+    family = "baseline"
+
     #: its decoder is untrained too: no reconstruction figure for the leaderboard
     save_reconstruction_figure = None
 
@@ -166,6 +174,8 @@ class PCAEncoder(Encoder):
         image_size: side of the downsampled image (must divide the image side).
         seed: seed of the randomized SVD solver (used on large inputs).
     """
+
+    family = "baseline"
 
     latent_dim: int = 16  # a hyperparameter here (shadows the base class's abstract property)
 

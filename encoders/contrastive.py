@@ -100,6 +100,8 @@ class ContrastiveEncoder(TrunkEncoder):
         progress: show a progress bar while training.
     """
 
+    family = "contrastive"
+
     LOSS_TERMS = ("infonce", "top1")
 
     def __init__(self, objective: str = "time", latent_dim: int = 16, epochs: int = 20,

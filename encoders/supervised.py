@@ -79,6 +79,8 @@ class SupervisedEncoder(TrunkEncoder):
         progress: show a progress bar while training.
     """
 
+    family = "supervised"
+
     LOSS_TERMS = ("mse",)
     fit_modalities = (IMAGE, FT, PROPRIO)
 

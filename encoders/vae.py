@@ -84,6 +84,8 @@ class MultimodalVAE(TrunkEncoder):
         progress: show a progress bar with the loss terms while training.
     """
 
+    family = "vae"
+
     LOSS_TERMS = LOSS_TERMS
 
     def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,

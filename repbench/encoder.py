@@ -65,6 +65,10 @@ class Encoder(abc.ABC):
 
     #: Modalities ``encode`` reads; batches lacking one are rejected with a clear error.
     required_modalities: ClassVar[tuple[str, ...]] = (IMAGE, FT, PROPRIO)
+    #: Which kind of encoder this is, for the leaderboard's within-family correlations:
+    #: ``"baseline"`` (oracles, untrained, blind or classical references) or a learned family
+    #: (``"vae"``, ``"contrastive"``, ``"supervised"``, ...; default ``"learned"``).
+    family: ClassVar[str] = "learned"
 
     # -- to implement --------------------------------------------------------------------------
     @abc.abstractmethod

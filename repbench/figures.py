@@ -5,7 +5,9 @@
 * ``learning_curves.png`` — return against training steps (Fig. 3b);
 * ``latent_distance.png`` — E‖z_n − z_{n+T}‖ against the offset T (Fig. 5a);
 * ``smoothness_hist.png`` — ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ histograms (Fig. 5b);
-* ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a).
+* ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a);
+* ``predicted_vs_actual.png`` — each encoder's return predicted leave-one-encoder-out by the
+  metric with the lowest LOO error, against its actual mean return (one panel per agent).
 """
 
 from __future__ import annotations
@@ -257,13 +259,56 @@ _STORE_FIGURE_TITLES = {"reconstructions": "Reconstructions: {} (appendix figure
                         "loss_curves": "Training curves: {} (train and held-out loss per epoch)"}
 
 
+def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
+    """Leave-one-encoder-out predicted return (best metric by LOO error) vs actual mean return,
+    one panel per task × agent, with the seeds' 95 % t-interval and the diagonal."""
+    preds = getattr(res, "loo_predictions", None) or {}
+    if ranking is None or ranking.empty or "loo_rmse" not in ranking or not preds:
+        return None
+    best = (ranking[np.isfinite(ranking["loo_rmse"])].sort_values("loo_rmse")
+            .groupby(["task", "agent"], sort=True).head(1))
+    if best.empty:
+        return None
+    fig, axes = plt.subplots(1, len(best), squeeze=False, figsize=(4.2 * len(best), 3.8))
+    for ax, (_, b) in zip(axes[0], best.iterrows(), strict=True):
+        pred = preds.get((b["task"], b["agent"], b["metric"]), {})
+        rets: dict[str, list[float]] = {}
+        for r in res.rl_rows:
+            if r["task"] == b["task"] and r["agent"] == b["agent"]:
+                rets.setdefault(r["encoder"], []).append(r["eval_return"])
+        colors = _colors(list(pred))
+        lims = []
+        for enc, yhat in pred.items():
+            if enc not in rets:
+                continue
+            m, lo, hi = mean_ci(rets[enc])
+            yerr = [[m - lo], [hi - m]] if np.isfinite(lo) else None
+            ax.errorbar(yhat, m, yerr=yerr, fmt="o", color=colors[enc], ms=5, capsize=2)
+            ax.annotate(enc, (yhat, m), fontsize=6, xytext=(3, 3), textcoords="offset points")
+            lims += [yhat, m]
+        if lims:
+            lo_, hi_ = min(lims), max(lims)
+            ax.plot([lo_, hi_], [lo_, hi_], color="#999", lw=0.8, ls="--")
+        ax.set_xlabel(f"predicted from {b['metric']} (leave one encoder out)")
+        ax.set_ylabel(f"{b['agent']} return (mean over seeds)")
+        ax.set_title(f"{b['task']} {b['agent']}: LOO RMSE {b['loo_rmse']:.3g} "
+                     f"(ratio {b['loo_rmse_ratio']:.2f})", fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
     """Render every figure that the results support; name → PNG path."""
 
     def scatter(r: Any, p: Path) -> Path | None:
         return metric_vs_return(r, p, metrics_df)
 
+    def predicted(r: Any, p: Path) -> Path | None:
+        return predicted_vs_actual(r, p, metrics_df)
+
     makers = {
+        "Predicted vs actual return (best metric, leave one encoder out)": (
+            predicted, "predicted_vs_actual"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
         "Privileged agent learning curve": (privileged_curve, "privileged_curve"),

@@ -5,9 +5,11 @@ them by identity, :mod:`repbench.results`); nothing here reads a plan or the sto
 * ``encoders.csv`` — one row per task × encoder: every metric with its CI, and per agent the RL
   return over seeds (mean and interquartile mean, each with a stratified-bootstrap 95 %
   interval from rliable; seeds are the unit) and success rate.
-* ``metrics.csv`` — one row per task × agent × metric: Pearson, Spearman and Kendall between the
-  (direction-adjusted) metric and the mean RL return across encoders, with bootstrap CIs and
-  p-values — "which metric predicts RL performance".
+* ``metrics.csv`` — one row per task × agent × metric, ranked: the metric leaderboard
+  (:func:`metric_ranking`: Spearman within the learned encoders and over all encoders with
+  intervals and Holm/BH-adjusted p-values, leave-one-encoder-out error, cost in seconds), then
+  Pearson, Spearman and Kendall over all encoders with bootstrap CIs and p-values — "which
+  metric predicts RL performance".
 * ``index.html`` — one self-contained page (see :mod:`repbench.report_html`).
 """
 
@@ -72,6 +74,59 @@ def encoder_table(res: Results) -> pd.DataFrame:
     return df.reset_index(drop=True)
 
 
+def _family(encoder: str) -> str:
+    """An encoder's family from its class (records written before families were stored)."""
+    from repbench.registry import encoders
+
+    try:
+        return str(getattr(encoders.get(encoder), "family", "learned"))
+    except Exception:  # unknown or unimportable plugin: count it as learned
+        return "learned"
+
+
+def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
+                   ) -> tuple[pd.DataFrame, dict[tuple[str, str, str], dict[str, float]]]:
+    """The metric leaderboard (:func:`repbench.correlation.metric_leaderboard`) as a table,
+    ranked per task × agent by the within-learned-encoders Spearman ρ, then the all-encoder ρ;
+    and the leave-one-encoder-out predicted returns per (task, agent, metric)."""
+    from repbench.correlation import metric_leaderboard
+
+    families = {r["encoder"]: r.get("family") or _family(r["encoder"])
+                for r in res.encoder_rows}
+    for r in res.metric_rows:
+        families.setdefault(r["encoder"], _family(r["encoder"]))
+    rows, preds = metric_leaderboard(res.metric_rows, res.rl_rows, families,
+                                     res.provenance.get("directions", {}),
+                                     n_bootstrap=n_bootstrap, seed=seed)
+    df = pd.DataFrame(rows)
+    if not df.empty:
+        df = df.sort_values(["task", "agent", "spearman_learned", "spearman_all"],
+                            ascending=[True, True, False, False],
+                            na_position="last").reset_index(drop=True)
+    return df, preds
+
+
+def add_loo_predicted_return(enc: pd.DataFrame, ranking: pd.DataFrame,
+                             predictions: dict[tuple[str, str, str], dict[str, float]]
+                             ) -> pd.DataFrame:
+    """Add ``<agent>_loo_predicted_return`` and ``<agent>_loo_predicted_by`` to the encoder
+    table: each encoder's return predicted, leave-one-encoder-out, by the metric with the
+    lowest LOO error for that task and agent (the metric leaderboard's best predictor)."""
+    if enc.empty or ranking.empty or "loo_rmse" not in ranking:
+        return enc
+    enc = enc.copy()
+    for (task, agent), grp in ranking.groupby(["task", "agent"]):
+        grp = grp[np.isfinite(grp["loo_rmse"])]
+        if grp.empty:
+            continue
+        best = str(grp.sort_values("loo_rmse").iloc[0]["metric"])
+        pred = predictions.get((str(task), str(agent), best), {})
+        mask = enc["task"] == task
+        enc.loc[mask, f"{agent}_loo_predicted_return"] = enc.loc[mask, "encoder"].map(pred)
+        enc.loc[mask, f"{agent}_loo_predicted_by"] = best
+    return enc
+
+
 def metric_table(res: Results, n_bootstrap: int = 1000, seed: int = 0) -> pd.DataFrame:
     """One row per task × agent × metric with correlations to RL return."""
     returns: dict[tuple[str, str], dict[str, list[float]]] = {}
@@ -109,6 +164,10 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     enc = encoder_table(res)
     met = metric_table(res)
+    ranking, res.loo_predictions = metric_ranking(res)
+    if not ranking.empty and not met.empty:  # metrics.csv: the ranking's columns, its order
+        met = ranking.merge(met, on=["task", "agent", "metric"], how="left")
+        enc = add_loo_predicted_return(enc, ranking, res.loo_predictions)
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     write_records(res.records, out_dir / "records")

@@ -11,29 +11,54 @@ Register it with the decorator, which also validates inputs before the function 
 
     @repbench.metric("my_metric", higher_is_better=True, description="...")
     def my_metric(z, z_true, episode, rng, *, k=5) -> MetricResult: ...
+
+Extra arrays. A metric that needs more than ``(z, z_true, episode)`` declares keyword-only
+parameters named after the arrays the latents stage stores (:data:`EXTRA_INPUTS`):
+``robot_state`` (float ``[N, R]``: what the agent sees beside z, ``Task.robot_state``),
+``task_state`` (float ``[N, K]``: ``Task.task_state``, e.g. the peg tip's offset from the hole),
+``action`` (float ``[N, A]``: the dataset's action at each step; on the on-policy dataset the
+privileged agent's) and ``source`` (int ``[N]``: which dataset a row came from). The metric stage
+passes exactly the ones the function's signature names; the wrapper checks their shape and values.
+
+Rows. ``rows="on_policy"`` in the decorator makes the metric stage compute the metric on the
+on-policy dataset's rows only (the paper's choice for smoothness and latent distances; needed for
+the expert-action probe); the default ``"all"`` uses every row the latents stage stored (the
+held-out backwards-exploration episodes and the on-policy episodes).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-from repbench.metric_types import Metric, MetricResult, check_metric_inputs
+from repbench.metric_types import (
+    EXTRA_INPUTS,
+    ROWS,
+    Metric,
+    MetricResult,
+    check_extra_input,
+    check_metric_inputs,
+)
 from repbench.registry import metrics
 
-__all__ = ["Metric", "MetricResult", "check_metric_inputs", "metric"]
+__all__ = ["EXTRA_INPUTS", "ROWS", "Metric", "MetricResult", "check_extra_input",
+           "check_metric_inputs", "metric"]
 
 
 def metric(name: str, *, higher_is_better: bool, description: str = "", min_samples: int = 10,
-           register: bool = True, version: int = 0
+           register: bool = True, version: int = 0, rows: str = "all"
            ) -> Callable[[Callable[..., MetricResult]], Metric]:
     """Decorator turning a function into a :class:`Metric` (and registering it by default).
+
+    ``rows`` (``"all"`` or ``"on_policy"``) says which rows of the stored latents the metric
+    stage computes it on (module docstring).
 
     ``version``: bump it when a change alters the metric's values; stored results of the older
     version then show as stale instead of being reused (:mod:`repbench.records`).
     """
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:
-        m = Metric(fn, name, higher_is_better, description, min_samples, version=version)
+        m = Metric(fn, name, higher_is_better, description, min_samples, version=version,
+                   rows=rows)
         if register:
             metrics.register(name, m)
         return m

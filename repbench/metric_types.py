@@ -30,6 +30,12 @@ import numpy as np
 
 from repbench.errors import DataError
 
+#: Arrays beside (z, z_true, episode) that a metric can ask for by naming a keyword parameter
+#: (see :mod:`repbench.metric`).
+EXTRA_INPUTS = ("robot_state", "task_state", "action", "source")
+#: Which rows of the stored latents a metric is computed on (see :mod:`repbench.metric`).
+ROWS = ("all", "on_policy")
+
 
 @dataclass(frozen=True)
 class MetricResult:
@@ -64,8 +70,12 @@ class Metric:
 
     def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
                  description: str = "", min_samples: int = 10, needs_episodes: bool = False,
-                 version: int = 0) -> None:
+                 version: int = 0, rows: str = "all") -> None:
+        if rows not in ROWS:
+            raise ValueError(f"metric {name!r}: rows must be one of {ROWS}, got {rows!r}")
         self.fn = fn
+        #: which rows of the stored latents the metric stage computes it on
+        self.rows = rows
         #: declared version of what the metric computes (see :class:`repbench.Encoder.version`)
         self.version = int(version)
         self.name = name
@@ -81,6 +91,9 @@ class Metric:
         z, z_true, episode = check_metric_inputs(
             z, z_true, episode, name=self.name, min_samples=self.min_samples,
         )
+        for key in self.extra_inputs:
+            if key in params and params[key] is not None:
+                params[key] = check_extra_input(params[key], key, len(z), name=self.name)
         if not isinstance(rng, np.random.Generator):
             rng = np.random.default_rng(0 if rng is None else rng)
         result = self.fn(z, z_true, episode, rng, **params)
@@ -89,6 +102,14 @@ class Metric:
         if result.higher_is_better != self.higher_is_better:
             raise TypeError(f"metric {self.name!r} returned a result with the wrong direction")
         return result
+
+    @property
+    def extra_inputs(self) -> tuple[str, ...]:
+        """The names in :data:`EXTRA_INPUTS` that the function's signature accepts."""
+        import inspect
+
+        sig = inspect.signature(self.fn).parameters
+        return tuple(k for k in EXTRA_INPUTS if k in sig)
 
     def __repr__(self) -> str:
         return f"<Metric {self.name} ({'higher' if self.higher_is_better else 'lower'} is better)>"
@@ -117,6 +138,25 @@ def check_metric_inputs(z: Any, z_true: Any, episode: Any = None, *, name: str =
     if episode.shape != (z.shape[0],):
         raise DataError(f"{name}: episode must have shape ({z.shape[0]},), got {episode.shape}")
     return z, z_true, episode
+
+
+def check_extra_input(value: Any, key: str, n: int, *, name: str = "metric") -> np.ndarray:
+    """Validate one extra array (:data:`EXTRA_INPUTS`): aligned with z, finite, right rank."""
+    arr = np.asarray(value)
+    if key == "source":
+        if arr.shape != (n,):
+            raise DataError(f"{name}: source must have shape ({n},), got {arr.shape}")
+        return arr
+    arr = np.asarray(arr, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or arr.shape[0] != n:
+        raise DataError(f"{name}: {key} must be [{n}, dims] aligned with z, got shape "
+                        f"{arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = int((~np.isfinite(arr)).any(axis=1).sum())
+        raise DataError(f"{name}: {key} has NaN/inf in {bad} rows; drop or fix them first")
+    return arr
 
 
 def _jsonable(value: Any) -> Any:

@@ -4,8 +4,13 @@ Per task::
 
     random dataset ─┬─▶ privileged SAC (oracle_task) ─▶ on-policy dataset ─┐
                     ├─▶ encoder e (for every e) ──────────────────────┼─▶ latents e ─▶ metric m
-                    │                     └─▶ RL (agent a, seed s) ───┘
-                    └─▶ true-state diagnostics (random + on-policy)
+                    │                     └─▶ RL (agent a, seed s)    │
+                    └─▶ true-state diagnostics (random + on-policy)   │
+    held-out dataset (own seed, off-grid holes) ──────────────────────┘
+
+The latents (and so every metric) come from the held-out and on-policy datasets, which no encoder
+trains on; without a held-out dataset (``dataset.heldout_episodes = 0``) they come from the
+random (training) and on-policy datasets, as before.
 
 Keys depend only on configs and input keys, so the whole plan (and therefore where every result
 lives in the store) is known before anything runs. A plugin enters a key through its name, its
@@ -55,6 +60,7 @@ class TaskPlan:
     latents: dict[str, StageSpec] = field(default_factory=dict)
     metrics: dict[tuple[str, str], StageSpec] = field(default_factory=dict)  # (enc, metric)
     rl: dict[tuple[str, str, int], StageSpec] = field(default_factory=dict)  # (enc, agent, seed)
+    heldout_dataset: StageSpec | None = None
 
 
 @dataclass
@@ -66,10 +72,10 @@ class Plan:
         """All stages in a dependency-respecting order, without duplicates."""
         out: dict[str, StageSpec] = {}
         for tp in self.tasks:
-            seq: list[StageSpec | None] = [tp.random_dataset, tp.full_state, tp.on_policy_dataset,
-                                           tp.diagnostics, *tp.encoders.values(),
-                                           *tp.latents.values(), *tp.metrics.values(),
-                                           *tp.rl.values()]
+            seq: list[StageSpec | None] = [
+                tp.random_dataset, tp.full_state, tp.on_policy_dataset, tp.heldout_dataset,
+                tp.diagnostics, *tp.encoders.values(), *tp.latents.values(),
+                *tp.metrics.values(), *tp.rl.values()]
             for s in seq:
                 if s is not None:
                     out.setdefault(f"{s.kind}/{s.key}", s)
@@ -157,13 +163,11 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
         priv_cls = encoders.get(rl.privileged_encoder)
         # the suite's SAC settings (budget-related ones like learning_starts), then what the
         # privileged agent learns the task with, then the suite's explicit privileged settings
-        suite_sac = suite.agent_params.get(FULL_STATE_AGENT, {})
-        check_kwargs(f"agent_params.{FULL_STATE_AGENT}", sac_cls, suite_sac)
-        construct_checked(suite, f"agent_params.{FULL_STATE_AGENT}", sac_cls, suite_sac,
-                          _agent_validator(suite.rl.train_steps))
-        sac_params = {**suite_sac, **PRIVILEGED_AGENT_PARAMS, **rl.privileged_params}
-        check_kwargs("rl.privileged_params", sac_cls, sac_params)
-        construct_checked(suite, "rl.privileged_params", sac_cls, sac_params,
+        sac_params = {**suite.agent_params.get(FULL_STATE_AGENT, {}),
+                      **PRIVILEGED_AGENT_PARAMS, **rl.privileged_params}
+        field_name = f"rl.privileged_params (over agent_params.{FULL_STATE_AGENT})"
+        check_kwargs(field_name, sac_cls, sac_params)
+        construct_checked(suite, field_name, sac_cls, sac_params,
                           _agent_validator(rl.full_state_train_steps))
         sac_part = plugin_part(FULL_STATE_AGENT, sac_cls, sac_params)
         full_budget = {"train_steps": rl.full_state_train_steps,
@@ -195,6 +199,28 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                             label=f"{task_name} true-state diagnostics",
                             record=_context("diagnostics", task_part, data=data,
                                             data_stages=data_stages)))
+    # what the latents (and so the metrics) are computed on: held-out + on-policy when the suite
+    # has a held-out dataset, else the random (training) + on-policy data
+    metric_inputs, metric_data, metric_stages = dict(dataset_inputs), data, data_stages
+    if ds.heldout_episodes > 0:
+        heldout_params = {**task_params, **suite.heldout_task_params.get(task_name, {})}
+        check_kwargs(f"heldout_task_params.{task_name}", task_cls, heldout_params)
+        construct_checked(suite, f"heldout_task_params.{task_name!r}", task_cls, heldout_params)
+        heldout_data = {"episodes": ds.heldout_episodes,
+                        "steps": ds.heldout_steps or ds.random_steps, "seed": ds.heldout_seed,
+                        "task_params": heldout_params}
+        tp.heldout_dataset = StageSpec(DATASET, jsonable_config({
+            **task_cfg, "task_params": heldout_params, "kind": "random",
+            "n_episodes": ds.heldout_episodes,
+            "steps_per_episode": ds.heldout_steps or ds.random_steps, "seed": ds.heldout_seed}),
+            label=f"{task_name} held-out data",
+            record=_context("dataset", task_part, data={"name": "heldout", **heldout_data}))
+        metric_inputs = {"heldout": _ref(tp.heldout_dataset)}
+        metric_data = {**data, "heldout": heldout_data}
+        metric_stages = {"heldout": tp.heldout_dataset.key}
+        if on_policy is not None:
+            metric_inputs["on_policy"] = _ref(on_policy)
+            metric_stages["on_policy"] = on_policy.key
 
     training = suite.encoder_training.model_dump()
     for enc_name in suite.encoders:
@@ -213,11 +239,11 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             record=_context("encoder", task_part, data={"random": random_data},
                             encoder=enc_part, data_stages={"random": random_ds.key}))
         tp.encoders[enc_name] = enc
-        lat = StageSpec(LATENTS, {"encoder": enc_name}, inputs={"encoder": _ref(enc),
-                                                               **dataset_inputs},
+        lat = StageSpec(LATENTS, jsonable_config({"encoder": enc_name, "task": task_cfg}),
+                        inputs={"encoder": _ref(enc), **metric_inputs},
                         label=f"{task_name} latents {enc_name}",
-                        record=_context("latents", task_part, data=data, encoder=enc_part,
-                                        data_stages=data_stages))
+                        record=_context("latents", task_part, data=metric_data,
+                                        encoder=enc_part, data_stages=metric_stages))
         tp.latents[enc_name] = lat
         for m in suite.metrics:
             fn = metrics.get(m)
@@ -226,11 +252,11 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             check_kwargs(f"metric_params.{m}", fn.fn if hasattr(fn, "fn") else fn, mparams)
             tp.metrics[(enc_name, m)] = StageSpec(METRIC, jsonable_config({
                 "metric": m, "params": mparams, "seed": suite.metric_settings.seed,
-                "version": plugin_version(fn)}), inputs={"latents": _ref(lat)},
-                label=f"{task_name} {m} × {enc_name}",
-                record=_context("metric", task_part, data=data, encoder=enc_part,
+                "rows": getattr(fn, "rows", "all"), "version": plugin_version(fn)}),
+                inputs={"latents": _ref(lat)}, label=f"{task_name} {m} × {enc_name}",
+                record=_context("metric", task_part, data=metric_data, encoder=enc_part,
                                 metric=plugin_part(m, fn, mparams),
-                                seed=suite.metric_settings.seed, data_stages=data_stages))
+                                seed=suite.metric_settings.seed, data_stages=metric_stages))
         for a in suite.agents:
             agent_cls = agents.get(a)
             aparams: dict[str, Any] = dict(suite.agent_params.get(a, {}))

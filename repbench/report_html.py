@@ -166,11 +166,30 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
                  "pearson_ci_low", "pearson_ci_high", "pearson_p", "kendall", "kendall_ci_low",
                  "kendall_ci_high", "kendall_p"]
     met = metrics_df[[c for c in corr_cols if c in metrics_df.columns]]
+    rank_cols = ["agent", "metric", "spearman_learned", "spearman_learned_ci_low",
+                 "spearman_learned_ci_high", "spearman_learned_p_holm", "spearman_learned_p_bh",
+                 "n_learned", "spearman_all", "spearman_all_ci_low", "spearman_all_ci_high",
+                 "spearman_all_p_holm", "spearman_all_p_bh", "n_all", "loo_rmse",
+                 "loo_rmse_ratio", "cost_s"]
+    if len({*metrics_df.get("task", pd.Series(dtype=object))}) > 1:
+        rank_cols.insert(0, "task")
+    ranking = metrics_df[[c for c in rank_cols if c in metrics_df.columns]]
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         f"<p class='sub'>{html.escape(prov.get('description') or '')}</p>",
+        "<h2>Metric leaderboard</h2>",
+        "<p class='note'>Metrics ranked by their Spearman ρ with RL return <b>within the learned "
+        "encoders</b> (baselines such as the oracle and the untrained encoder excluded: they "
+        "anchor any pooled correlation), then over all encoders. Brackets: 95% bootstrap "
+        "interval resampling encoders, RL seeds and each encoder's metric estimate (its own "
+        "bootstrap replicates). p_holm / p_bh: Holm and Benjamini–Hochberg adjusted p-values "
+        "over all metric × agent tests. loo_rmse: error of predicting an encoder's mean return "
+        "from the metric by a line fit on the other encoders; ratio &lt; 1 beats predicting the "
+        "others' mean. cost_s: seconds to compute the metric for one encoder.</p>",
+        _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
+        else "<p>No correlations yet.</p>",
         "<h2>Which metric predicts RL performance?</h2>",
         "<p class='note'>Correlation across encoders between each metric and the final "
         "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "

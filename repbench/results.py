@@ -49,6 +49,9 @@ class Results:
     records: list[dict[str, Any]] = field(default_factory=list)
     #: notes shown above the tables (e.g. data that differ from the reference data)
     warnings: list[str] = field(default_factory=list)
+    #: (task, agent, metric) → encoder → leave-one-encoder-out predicted return (metric
+    #: leaderboard, :func:`repbench.leaderboard.metric_ranking`)
+    loo_predictions: dict[tuple[str, str, str], dict[str, float]] = field(default_factory=dict)
 
 
 # -- reading --------------------------------------------------------------------------------------
@@ -150,7 +153,8 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
         if kind == "encoder":
             res.encoder_rows.append({"task": task, "encoder": enc,
                                      "latent_dim": values.get("latent_dim"),
-                                     "fit_time_s": values.get("fit_time_s")})
+                                     "fit_time_s": values.get("fit_time_s"),
+                                     "family": values.get("family")})
             for stem, png in (values.get("files") or {}).items():
                 path = Path(r["_path"]).parent / png if r.get("_path") else None
                 if path is not None and path.is_file():

@@ -113,7 +113,8 @@ def _run_encoder(spec: StageSpec, store: Store, w: Any) -> None:
     fit_time = time.time() - start
     enc.save(w.file("encoder.pt"))
     w.write_json({"latent_dim": int(enc.latent_dim), "fit_time_s": fit_time,
-                  "params": enc.get_params(), **_save_fit_history(enc, cfg["encoder"], w)})
+                  "params": enc.get_params(), "family": str(getattr(cls, "family", "learned")),
+                  **_save_fit_history(enc, cfg["encoder"], w)})
     figure = getattr(enc, "save_reconstruction_figure", None)
     if callable(figure):
         try:
@@ -145,6 +146,13 @@ def _save_fit_history(enc: Any, name: str, w: Any) -> dict[str, Any]:
 
 
 def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
+    """Encode the metric datasets; store z with the arrays metrics may ask for.
+
+    ``latents.npz`` holds ``z``, ``z_true``, ``episode``, ``step``, ``source`` (index into
+    ``source_names``: which dataset a row came from), ``action`` (the dataset's actions; on the
+    on-policy dataset the privileged agent's), ``robot_state`` (``Task.robot_state``: what the
+    agent sees beside z) and ``task_state`` (``Task.task_state``; absent for a task without one).
+    """
     from repbench.encoder import Encoder
 
     enc_art = store.get(ENCODER, spec.inputs["encoder"][1])
@@ -157,22 +165,56 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
     batch = 256
     z = np.concatenate([enc.encode(data.obs(slice(i, i + batch)))
                         for i in range(0, len(data), batch)])
-    np.savez_compressed(w.file("latents.npz"), z=z.astype(np.float32), z_true=data.true_state,
-                        episode=data.episode, step=data.step, source=source)
-    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": z.shape[1]})
+    arrays: dict[str, np.ndarray] = {
+        "z": z.astype(np.float32), "z_true": data.true_state, "episode": data.episode,
+        "step": data.step, "source": source, "source_names": np.array([n for n, _ in parts]),
+        "action": data.action}
+    notes: dict[str, Any] = {}
+    if "task" in spec.config:
+        task = _make_task(spec.config["task"])
+        arrays["robot_state"] = np.asarray(task.robot_state(data.obs()), dtype=np.float32)
+        try:
+            arrays["task_state"] = np.asarray(task.task_state(data.obs()), dtype=np.float32)
+        except NotImplementedError as exc:
+            notes["task_state"] = str(exc)
+    np.savez_compressed(w.file("latents.npz"), **arrays)
+    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": z.shape[1],
+                  "arrays": sorted(arrays), **notes})
+
+
+def metric_rows(rows: str, source: np.ndarray, source_names: list[str]
+                ) -> tuple[np.ndarray, str]:
+    """Row indices a metric declared with ``rows`` is computed on, and a description.
+
+    ``"on_policy"`` selects the rows of the on-policy dataset; when the latents have none (a
+    suite without on-policy data) it falls back to every row and says so.
+    """
+    everything = np.arange(len(source))
+    if rows == "all":
+        return everything, "all: " + " + ".join(source_names)
+    if rows in source_names:
+        return np.flatnonzero(source == source_names.index(rows)), rows
+    return everything, f"all: {' + '.join(source_names)} (no {rows} rows stored)"
 
 
 def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
     cfg = spec.config
     art = store.get(LATENTS, spec.inputs["latents"][1])
     assert art is not None
-    with np.load(art.file("latents.npz")) as f:
-        z, z_true, episode = f["z"], f["z_true"], f["episode"]
     fn = metrics.get(cfg["metric"])
+    with np.load(art.file("latents.npz")) as f:
+        arrays = {k: f[k] for k in f.files}
+    names = [str(n) for n in arrays.get("source_names", art.read_json().get("sources", []))]
+    source = arrays.get("source", np.zeros(len(arrays["z"]), dtype=np.int64))
+    idx, rows_used = metric_rows(cfg.get("rows", getattr(fn, "rows", "all")), source, names)
+    extra = {k: arrays[k][idx] for k in getattr(fn, "extra_inputs", ()) if k in arrays}
     start = time.time()
-    result = fn(z, z_true, episode, np.random.default_rng(cfg["seed"]), **cfg["params"])
+    result = fn(arrays["z"][idx], arrays["z_true"][idx], arrays["episode"][idx],
+                np.random.default_rng(cfg["seed"]), **extra, **cfg["params"])
     out = result.to_dict()
     out["time_s"] = time.time() - start
+    out["rows"] = rows_used
+    out["n_rows"] = int(idx.size)
     w.write_json(out)
 
 

@@ -56,6 +56,13 @@ class DatasetConfig(_Strict):
                                     description="episodes by the full-state agent")
     on_policy_steps: PositiveInt = Field(default=100, description="steps per on-policy episode")
     seed: int = Field(default=0, description="collection seed")
+    heldout_episodes: int = Field(default=0, ge=0, description=(
+        "episodes of a separate backwards-exploration dataset the metrics are computed on "
+        "(with the on-policy data), never seen by the encoders; 0: metrics use the random "
+        "(training) and on-policy data"))
+    heldout_steps: PositiveInt | None = Field(default=None, description=(
+        "steps per held-out episode (default: random_steps)"))
+    heldout_seed: int = Field(default=1000, description="collection seed of the held-out data")
 
 
 class EncoderTrainingConfig(_Strict):
@@ -119,6 +126,9 @@ class Suite(_Strict):
     rl: RLConfig = RLConfig()
     metric_settings: MetricsConfig = MetricsConfig()
     task_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    heldout_task_params: dict[str, dict[str, Any]] = Field(default_factory=dict, description=(
+        "task parameters overriding task_params for the held-out dataset only (PegInHole-v0: "
+        "hole_sampling = 'uniform' puts its holes off the training grid)"))
     encoder_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     metric_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     agent_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
@@ -142,7 +152,8 @@ class Suite(_Strict):
                 if name not in reg:
                     raise ConfigError(f"suite {self.source or self.name}, field "
                                       f"{field_name!r}: {reg._unknown_message(name)}")
-        for field_name, kind in (("task_params", "tasks"), ("encoder_params", "encoders"),
+        for field_name, kind in (("task_params", "tasks"), ("heldout_task_params", "tasks"),
+                                 ("encoder_params", "encoders"),
                                  ("metric_params", "metrics"), ("agent_params", "agents")):
             listed = set(getattr(self, kind))
             for name in getattr(self, field_name):

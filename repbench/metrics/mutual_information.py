@@ -39,7 +39,7 @@ from repbench.metric import MetricResult, metric
 from repbench.metrics._common import (
     check_params,
     drop_constant,
-    episode_bootstrap,
+    episode_bootstrap_replicates,
     resolve_device,
     seed_from,
     standardize,
@@ -191,8 +191,10 @@ def _ksg_result(x: np.ndarray, y: np.ndarray, episode: np.ndarray, rng: np.rando
                 k: int, n_bootstrap: int, extras: dict[str, Any]) -> MetricResult:
     terms = ksg_terms(x, y, k, rng=rng)
     value = float(terms.mean())
-    lo, hi = episode_bootstrap(lambda rows: terms[rows].mean(), episode, rng, n_bootstrap)
-    return MetricResult(value, True, lo, hi, extras={**extras, "k": k, "n_samples": len(x)})
+    lo, hi, reps = episode_bootstrap_replicates(lambda rows: terms[rows].mean(), episode, rng,
+                                                n_bootstrap)
+    return MetricResult(value, True, lo, hi, extras={**extras, "k": k, "n_samples": len(x),
+                                                     "bootstrap_replicates": reps})
 
 
 # -- metrics -------------------------------------------------------------------------------------
@@ -379,13 +381,14 @@ def _mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random
     last = [v for _, v in curve[-int(average_last):]]
     value = float(np.mean(last))
     t_joint, lme = held_out_terms()
-    lo, hi = episode_bootstrap(lambda rows: dv(t_joint[rows], lme[rows]), episode[test], rng,
-                               n_bootstrap)
-    if lo is not None and hi is not None:  # interval for the averaged value, same width
-        shift = value - dv(t_joint, lme)
+    lo, hi, reps = episode_bootstrap_replicates(lambda rows: dv(t_joint[rows], lme[rows]),
+                                                episode[test], rng, n_bootstrap)
+    shift = value - dv(t_joint, lme)  # interval for the averaged value, same width
+    reps = [r + shift for r in reps]
+    if lo is not None and hi is not None:
         lo, hi = lo + shift, hi + shift
     extras = {**notes, "steps": int(steps), "eval_every": int(eval_every),
               "average_last": len(last), "held_out_curve": curve,
               "train_bound_ema": train_bound, "n_train": int(n_tr), "n_test": int(n_te),
-              "split": "whole episodes held out"}
+              "split": "whole episodes held out", "bootstrap_replicates": reps}
     return MetricResult(value, True, lo, hi, extras=extras)
