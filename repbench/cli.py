@@ -99,11 +99,16 @@ def leaderboard(
                                        "collect.")] = "smoke",
     store: StoreOpt = None,
     out: OutOpt = None,
+    records: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--records", help="Build from this folder of result records (e.g. "
+        "leaderboards/smoke/records) instead of the store.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.runner import rebuild_leaderboards
 
-    out_dir = rebuild_leaderboards(suite, store=store, out=out)
+    if records is not None and not records.is_dir():
+        raise RepbenchError(f"records folder {records} does not exist")
+    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records)
     typer.echo(f"leaderboards written to {out_dir}")
 
 

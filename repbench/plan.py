@@ -163,13 +163,11 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
         priv_cls = encoders.get(rl.privileged_encoder)
         # the suite's SAC settings (budget-related ones like learning_starts), then what the
         # privileged agent learns the task with, then the suite's explicit privileged settings
-        suite_sac = suite.agent_params.get(FULL_STATE_AGENT, {})
-        check_kwargs(f"agent_params.{FULL_STATE_AGENT}", sac_cls, suite_sac)
-        construct_checked(suite, f"agent_params.{FULL_STATE_AGENT}", sac_cls, suite_sac,
-                          _agent_validator(suite.rl.train_steps))
-        sac_params = {**suite_sac, **PRIVILEGED_AGENT_PARAMS, **rl.privileged_params}
-        check_kwargs("rl.privileged_params", sac_cls, sac_params)
-        construct_checked(suite, "rl.privileged_params", sac_cls, sac_params,
+        sac_params = {**suite.agent_params.get(FULL_STATE_AGENT, {}),
+                      **PRIVILEGED_AGENT_PARAMS, **rl.privileged_params}
+        field_name = f"rl.privileged_params (over agent_params.{FULL_STATE_AGENT})"
+        check_kwargs(field_name, sac_cls, sac_params)
+        construct_checked(suite, field_name, sac_cls, sac_params,
                           _agent_validator(rl.full_state_train_steps))
         sac_part = plugin_part(FULL_STATE_AGENT, sac_cls, sac_params)
         full_budget = {"train_steps": rl.full_state_train_steps,

@@ -201,14 +201,9 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "and per agent the evaluation return over seeds — mean and interquartile mean (IQM), "
         "each with a stratified-bootstrap 95% interval (rliable; seeds are the unit of "
         "inference) — and success rate on the fixed evaluation episodes.</p>",
-        _table(encoders_df, "encoders"),
-        *_privileged_section(prov),
-
-
-        "and per agent the evaluation return (mean and 95% t-interval over seeds) and success "
-        "rate.</p>",
         *_encoder_notes(res),
         _table(encoders_df, "encoders", row_class=_encoder_row_class(res)),
+        *_privileged_section(prov),
         "<h2>Figures</h2>",
     ]
     for name, path in figures.items():

@@ -23,7 +23,7 @@ from repbench.store import Store
 #: Stage kinds whose records the leaderboard reads.
 RECORD_KINDS = ("dataset", "full_state_agent", "diagnostics", "encoder", "latents", "metric",
                 "rl")
-_LABELS = {"dataset": "{task} {name} data", "full_state_agent": "{task} full-state SAC"}
+_LABELS = {"dataset": "{task} {name} data", "full_state_agent": "{task} privileged SAC"}
 
 
 @dataclass

@@ -88,13 +88,25 @@ def check_workers(workers: int | None) -> None:
 
 
 def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
-                         out: str | Path | None = None) -> Path:
-    """Write the leaderboards of ``suite`` from what the store holds; computes nothing."""
+                         out: str | Path | None = None,
+                         records: str | Path | None = None) -> Path:
+    """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
+
+    With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``) they are
+    computed from those records alone, without a store or a plan.
+    """
     s = load_suite(suite)
-    st = Store(store)
-    results = collect_results(build_plan(s), st)
+    if records is not None:
+        found = load_records(records)
+        installed = installed_versions(found)
+        results = build_results(select(found, None, installed), suite=s, installed=installed)
+        where = f"records folder {records}"
+    else:
+        st = Store(store)
+        results = collect_results(build_plan(s), st)
+        where = f"store {st.root}"
     if not (results.encoder_rows or results.metric_rows or results.rl_rows):
-        raise RepbenchError(f"no results of suite {s.name!r} in store {st.root}; run "
+        raise RepbenchError(f"no results of suite {s.name!r} in {where}; run "
                             f"`repbench run --suite {suite}` with the same --store first")
     out_dir = Path(out) if out is not None else default_out_dir(s.name)
     return write_leaderboards(results, out_dir)

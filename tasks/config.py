@@ -68,10 +68,10 @@ class PegInHoleConfig:
     """Cut-off of the 2nd-order Butterworth low-pass on the wrist force/torque."""
     success_tolerance: float = 0.01
     """Inserted "to depth" means within this distance of the bottom (m)."""
-    robot_view: str = "proprio"
-    """The robot state the RL agent observes beside μ_z: ``"proprio"`` (joint positions and
-    velocities, tip position and velocity: 20 numbers) or ``"tip"`` (tip position and velocity:
-    6 numbers)."""
+    robot_view: str = "tip"
+    """The robot state the RL agent observes beside μ_z: ``"tip"`` (default; the peg tip's
+    position and velocity, 6 numbers; chosen by measurement, see ``repbench/suites/quick.toml``)
+    or ``"proprio"`` (joint positions and velocities, tip position and velocity: 20 numbers)."""
 
     # -- derived -------------------------------------------------------------------------------
     @property

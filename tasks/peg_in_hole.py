@@ -46,7 +46,7 @@ class PegInHoleTask(Task):
                  clearance: float = 0.002, image_size: int = 64, fast_render: bool = True,
                  camera: bool = True, start: str = "above", start_offset: float = 0.03,
                  action_scale: float = 0.02, physics_dt: float = 0.005,
-                 ft_cutoff_hz: float = 10.0, robot_view: str = "proprio") -> None:
+                 ft_cutoff_hz: float = 10.0, robot_view: str = "tip") -> None:
         self.horizon = horizon
         self.grid_size = grid_size
         self.grid_extent = grid_extent
@@ -101,8 +101,8 @@ class PegInHoleTask(Task):
         return self.make_env(seed=seed, camera=IMAGE in modalities)
 
     def robot_state(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
-        """What the agent sees of the robot beside μ_z (``robot_view``): the 20-D ``proprio``
-        or the peg tip's position and velocity (6-D)."""
+        """What the agent sees of the robot beside μ_z (``robot_view``): the peg tip's position
+        and velocity (6-D, the default) or the 20-D ``proprio``."""
         proprio = np.asarray(observation[PROPRIO], dtype=np.float32)
         if self.robot_view == "tip":
             return np.concatenate([proprio[..., TIP_POSITION], proprio[..., TIP_VELOCITY]], -1)

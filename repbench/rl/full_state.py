@@ -112,7 +112,8 @@ def load_policy(path: str | os.PathLike[str], task: Task, encoder: Encoder,
 #: (chosen by measurement: see ``repbench/suites/quick.toml``); suites override them.
 PRIVILEGED_ENCODER = "oracle_task"
 PRIVILEGED_AGENT_PARAMS: dict[str, Any] = {
-    "learning_rate": 3e-4, "hidden_sizes": [256, 256], "keep_best": True}
+    "learning_rate": 3e-4, "hidden_sizes": [256, 256], "keep_best": True,
+    "curve_episodes": 25}
 
 
 def fitted_privileged_encoder(task: Task, dataset: Dataset | None = None, seed: int = 0,

@@ -28,6 +28,18 @@ def test_shipped_smoke_records_are_readable() -> None:
     assert sorted({r["encoder"] for r in res.encoder_rows}) == sorted(shipped["encoder"])
 
 
+def test_leaderboard_is_a_function_of_the_shipped_records(tmp_path: Path) -> None:
+    """`repbench leaderboard --records` rebuilds the shipped tables from the records alone."""
+    shipped = ROOT / "leaderboards" / "smoke"
+    proc = subprocess.run([sys.executable, "-m", "repbench.cli", "leaderboard", "--suite",
+                           "smoke", "--records", str(shipped / "records"), "--out",
+                           str(tmp_path / "lb")], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    for table in ("encoders.csv", "metrics.csv"):
+        pd.testing.assert_frame_equal(pd.read_csv(shipped / table),
+                                      pd.read_csv(tmp_path / "lb" / table))
+
+
 def test_third_party_encoder_evaluated_metrics_only(smoke_run: SuiteRun, tmp_path: Path) -> None:
     pkg = tmp_path / "plugin"
     pkg.mkdir()

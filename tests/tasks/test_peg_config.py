@@ -126,7 +126,9 @@ def test_robot_view_tip_is_tip_position_and_velocity() -> None:
     proprio = np.arange(20, dtype=np.float32)
     np.testing.assert_array_equal(PegInHoleTask(robot_view="tip").robot_state(
         {"proprio": proprio}), np.arange(14, 20))
-    np.testing.assert_array_equal(PegInHoleTask().robot_state({"proprio": proprio}), proprio)
+    np.testing.assert_array_equal(
+        PegInHoleTask(robot_view="proprio").robot_state({"proprio": proprio}), proprio)
+    assert PegInHoleTask().robot_view == "tip"
     with pytest.raises(ConfigError, match="robot_view"):
         PegInHoleTask(robot_view="joints")
 
