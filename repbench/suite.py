@@ -89,9 +89,9 @@ class EncoderTrainingConfig(_Strict):
 class RLConfig(_Strict):
     """Downstream-RL budgets."""
 
-    train_steps: PositiveInt = Field(default=6000, description="environment steps per training "
+    train_steps: PositiveInt = Field(default=10000, description="environment steps per training "
                                                                "run (paper: 150k)")
-    eval_episodes: PositiveInt = Field(default=10, description="fixed evaluation episodes "
+    eval_episodes: PositiveInt = Field(default=30, description="fixed evaluation episodes "
                                                                "(paper: 20k steps)")
     curve_points: PositiveInt = Field(default=5, description="learning-curve evaluations")
     full_state_train_steps: PositiveInt = Field(default=20000, description="steps for the "
