@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
+from scipy import stats
 
-from repbench.correlation import adjust_pvalues, correlate, leave_one_out, metric_leaderboard
+from repbench.correlation import (
+    adjust_pvalues,
+    correlate,
+    leave_one_out,
+    metric_leaderboard,
+    spearman_permutation_p,
+)
 
 
 def test_adjusted_pvalues_are_statsmodels_holm_and_bh() -> None:
@@ -87,3 +96,15 @@ def test_within_family_scope_excludes_the_baselines_that_anchor_the_correlation(
     # lower-is-better "cost_only" is the sign-flipped m: same correlations
     c = next(r for r in rows if r["metric"] == "cost_only")
     assert c["spearman_learned"] == pytest.approx(m["spearman_learned"])
+
+
+def test_permutation_p_is_exact_for_few_encoders() -> None:
+    # 3 encoders in perfect order: 2 of the 3! = 6 pairings give |ρ| = 1, so p = 1/3 (scipy's
+    # t approximation says 0)
+    assert spearman_permutation_p([1, 2, 3], [10, 20, 30]) == pytest.approx(1 / 3)
+    assert spearman_permutation_p([1, 2, 3, 4, 5], [2, 4, 6, 8, 10]) == pytest.approx(2 / 120)
+    x, y = [1, 2, 3, 4, 5, 6], [1, 3, 2.5, 4, 9, 7]
+    rho = stats.spearmanr(x, y).statistic
+    perms = [stats.spearmanr(p, y).statistic for p in itertools.permutations(x)]
+    ref = np.mean(np.abs(perms) >= abs(rho) - 1e-12)  # brute force over all 720 pairings
+    assert spearman_permutation_p(x, y) == pytest.approx(ref)
