@@ -40,6 +40,8 @@ class PegInHoleTask(Task):
     """
 
     task_id: ClassVar[str] = "PegInHole-v0"
+    #: 1: the agents' robot state defaults to the tip's position and velocity (``robot_view``).
+    version: ClassVar[int] = 1
 
     def __init__(self, horizon: int = 100, grid_size: int = 5, grid_extent: float = 0.16,
                  grid_center: tuple[float, float] = (0.0, 0.0), hole_sampling: str = "grid",
@@ -170,7 +172,8 @@ class PegInHoleTask(Task):
         finally:
             env.close()
         dataset.metadata = {
-            "task": self.task_id, "task_version": 0, "params": _jsonable(self.get_params()),
+            "task": self.task_id, "task_version": self.version,
+            "params": _jsonable(self.get_params()),
             "kind": kind, "seed": int(seed), "n_episodes": int(n_episodes),
             "steps_per_episode": int(steps_per_episode),
             "library_versions": library_versions(),

@@ -150,6 +150,9 @@ class SB3Agent(Agent):
     """Shared machinery of the Stable-Baselines3 agents (see :class:`SACAgent`)."""
 
     name: ClassVar[str] = "sb3"
+    #: 1: evaluation on the task's fixed resets (every grid hole, then off-grid holes), curve
+    #: episodes spread over them, ``keep_best``.
+    version: ClassVar[int] = 1
     #: SB3 algorithm name (``stable_baselines3.<ALGO>``).
     algorithm: ClassVar[str] = ""
 
