@@ -2,7 +2,8 @@
 
 Closed forms for the Frenzel–Pompe CMI estimator; known orderings on a peg-like synthetic
 dataset (tests/metrics/_peg_like.py). Tolerances were measured over seeds 0-9 (CMI) or 0-4
-(orderings) with the commands in NOTES-issue13.md; the measured ranges are in the comments.
+(orderings) with the commands in issue 13's closing note (tests/metrics/measure/); the measured
+ranges are in the comments.
 """
 
 from __future__ import annotations

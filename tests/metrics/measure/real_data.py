@@ -1,4 +1,5 @@
-"""Measurements behind NOTES-issue13.md on real PegInHole-v0 arrays (not a test; run by hand).
+"""Measurements behind issue 13's closing note, on real PegInHole-v0 arrays (not a test; run
+by hand).
 
     python tests/metrics/measure/real_data.py collect            # ~35 s physics-only
     python tests/metrics/measure/real_data.py cost [metrics] [z-variants]
