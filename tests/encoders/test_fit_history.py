@@ -65,7 +65,7 @@ full_state_train_steps = 100
 epochs = 5
 """
     p = tmp_path / "x.toml"
-    p.write_text(base + "patience = 2\n")
+    p.write_text(base + "patience = 2\nvalidation_fraction = 0.0\n")  # (default: quick's 0.2)
     with pytest.raises(ConfigError, match=r"patience > 0 .* needs validation_fraction > 0"):
         load_suite(p)
     p.write_text(base + "patience = 2\nvalidation_fraction = 0.2\n")

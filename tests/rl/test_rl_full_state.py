@@ -20,7 +20,7 @@ def trained(toy_task, state_encoder):
 
 def test_full_state_agent_result(trained):
     _, result = trained
-    assert result.extras["role"] == "full_state" and result.extras["agent"] == "sac"
+    assert result.extras["role"] == "privileged" and result.extras["agent"] == "sac"
     assert len(result.eval_episode_returns) == 2
 
 

@@ -45,13 +45,13 @@ def test_agents_on_real_encoders(agent, encoder, real_encoders, short_task):
     assert result.extras["observation_dim"] == expected_dim
 
 
-def test_full_state_agent_uses_registered_oracle(toy_task, toy_dataset):
-    _plugin("oracle")
+def test_full_state_agent_uses_registered_oracle_task(toy_task, toy_dataset):
+    _plugin("oracle_task")
     policy, result = train_full_state_agent(toy_task, train_steps=60, seed=0,
                                             dataset=toy_dataset, eval_episodes=1,
                                             curve_points=1, learning_starts=20, batch_size=16,
                                             progress=False)
-    assert result.extras["encoder"] == "OracleEncoder"
+    assert result.extras["encoder"] == "OracleTaskEncoder"  # the privileged agent's view
     ds = collect_on_policy(toy_task, policy, n_episodes=1, steps_per_episode=5, seed=0,
                            progress=False)
     assert np.isfinite(ds.action).all()
