@@ -100,6 +100,8 @@ class ContrastiveEncoder(TrunkEncoder):
         progress: show a progress bar while training.
     """
 
+    family = "contrastive"
+
     LOSS_TERMS = ("infonce", "top1")
 
     def __init__(self, objective: str = "time", latent_dim: int = 16, epochs: int = 20,
@@ -127,8 +129,8 @@ class ContrastiveEncoder(TrunkEncoder):
     def temporal(self) -> bool:
         return self.objective == "time"
 
-    def _check_params(self) -> None:
-        super()._check_params()
+    def check_params(self) -> None:
+        super().check_params()
         name = type(self).__name__
         if self.objective not in OBJECTIVES:
             raise ConfigError(f"{name}: objective must be one of {OBJECTIVES}, "

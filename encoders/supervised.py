@@ -79,6 +79,8 @@ class SupervisedEncoder(TrunkEncoder):
         progress: show a progress bar while training.
     """
 
+    family = "supervised"
+
     LOSS_TERMS = ("mse",)
     fit_modalities = (IMAGE, FT, PROPRIO)
 
@@ -98,8 +100,8 @@ class SupervisedEncoder(TrunkEncoder):
         self.device = device
         self.progress = progress
 
-    def _check_params(self) -> None:
-        super()._check_params()
+    def check_params(self) -> None:
+        super().check_params()
         if self.target not in TARGETS:
             raise ConfigError(f"{type(self).__name__}: target must be one of {TARGETS}, "
                               f"got {self.target!r}")

@@ -22,6 +22,7 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from repbench import devices
 from repbench.dataset import FT, IMAGE, LAST_ACTION, PROPRIO, Dataset
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError, TrainingDivergedError
@@ -34,14 +35,9 @@ _EVAL_BATCH = 256
 
 
 def resolve_device(device: str) -> torch.device:
-    """``"auto"`` → CUDA when present, else CPU; anything else as given."""
-    if device == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    try:
-        return torch.device(device)
-    except RuntimeError as exc:
-        raise ConfigError(f"device {device!r} is not a torch device ({exc}); use 'auto', "
-                          "'cpu' or 'cuda'") from None
+    """``"auto"`` → CUDA when present, else CPU; anything else as given (one rule for all:
+    :func:`repbench.devices.resolve_device`)."""
+    return torch.device(devices.resolve_device(device))
 
 
 class TrunkEncoder(Encoder):
@@ -117,7 +113,7 @@ class TrunkEncoder(Encoder):
         return _EVAL_BATCH
 
     # -- parameters ----------------------------------------------------------------------------
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
         name = type(self).__name__
 
         def integer(key: str, low: int) -> None:
@@ -172,7 +168,7 @@ class TrunkEncoder(Encoder):
     def fit(self, dataset: Dataset) -> TrunkEncoder:
         """Train on ``dataset``: at most ``epochs`` passes, early stopping on held-out episodes
         when ``patience > 0``; the weights of the best held-out epoch are kept."""
-        self._check_params()
+        self.check_params()
         name = type(self).__name__
         spec = self._network_spec(dataset)
         rows, nxt = self._pairs(dataset)

@@ -84,6 +84,8 @@ class MultimodalVAE(TrunkEncoder):
         progress: show a progress bar with the loss terms while training.
     """
 
+    family = "vae"
+
     LOSS_TERMS = LOSS_TERMS
 
     def __init__(self, latent_dim: int = 16, epochs: int = 20, batch_size: int = 64,
@@ -117,8 +119,8 @@ class MultimodalVAE(TrunkEncoder):
         """Whether a loss term needs pairs (n, n+1)."""
         return self.pred_z_weight > 0 or self.pred_im_weight > 0 or self.smooth_weight > 0
 
-    def _check_params(self) -> None:
-        super()._check_params()
+    def check_params(self) -> None:
+        super().check_params()
         name = type(self).__name__
         for w in ("kl_weight", "recon_weight", "success_weight", "pred_z_weight",
                   "pred_im_weight", "smooth_weight", "ft_recon_scale"):

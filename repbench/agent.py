@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import abc
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 from repbench.encoder import Encoder
 from repbench.task import Task
@@ -47,6 +47,11 @@ class AgentResult:
 
 class Agent(abc.ABC):
     """Base class of all agents. The constructor stores hyperparameters only."""
+
+    #: Declared version of what this plugin computes. Part of every stage key and result record
+    #: in place of the source code: bump it when a change alters results; editing docstrings or
+    #: refactoring needs no bump. Older records then show as stale (:mod:`repbench.records`).
+    version: ClassVar[int] = 0
 
     @abc.abstractmethod
     def train(self, task: Task, encoder: Encoder, *, train_steps: int, seed: int,

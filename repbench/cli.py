@@ -99,12 +99,46 @@ def leaderboard(
                                        "collect.")] = "smoke",
     store: StoreOpt = None,
     out: OutOpt = None,
+    records: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--records", help="Build from this folder of result records (e.g. "
+        "leaderboards/smoke/records) instead of the store.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.runner import rebuild_leaderboards
 
-    out_dir = rebuild_leaderboards(suite, store=store, out=out)
+    if records is not None and not records.is_dir():
+        raise RepbenchError(f"records folder {records} does not exist")
+    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records)
     typer.echo(f"leaderboards written to {out_dir}")
+
+
+@app.command()
+def evaluate(
+    encoder: Annotated[str, typer.Argument(help="Registered encoder to evaluate (e.g. an "
+                                           "entry point of your package).")],
+    suite: Annotated[str, typer.Option("--suite", "-s", help="Suite whose reference "
+                                       "leaderboard to join.")] = "smoke",
+    metrics_only: Annotated[bool, typer.Option(
+        "--metrics-only", help="Skip RL: compute the metrics and predict the return from the "
+        "reference calibration (minutes instead of hours).")] = False,
+    reference: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--reference", help="Folder of reference records (default: "
+        "leaderboards/<suite>/records).")] = None,
+    store: StoreOpt = None,
+    out: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--out", help="Leaderboard folder (default: leaderboards/<suite>-<encoder>).")] = None,
+    workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
+        help="Parallel workers (default: CPU count).")] = None,
+) -> None:
+    """Evaluate one encoder against a suite's reference records: compute only its stages,
+    merge, and write a leaderboard with it highlighted."""
+    from repbench.evaluate import evaluate_encoder
+
+    result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store, out=out,
+                              reference=reference, workers=workers)
+    typer.echo(f"leaderboard written to {result.out_dir}")
+    if result.report.failed:
+        raise typer.Exit(1)
 
 
 @task_app.command("preview")

@@ -7,6 +7,12 @@ positive correlation always means "the metric ranks encoders the way RL does". C
 intervals come from a two-level bootstrap: resample encoders with replacement, and within each
 drawn encoder resample its seeds, then recompute each coefficient (percentile interval).
 p-values are scipy's (t-test for Pearson, exact/asymptotic for Spearman and Kendall).
+
+:func:`metric_leaderboard` builds the metric leaderboard on top: the Spearman ρ over all encoders
+and within the learned encoders only (the baselines — oracle, untrained, blind — anchor any pooled
+coefficient), intervals that also draw each encoder's metric from its own bootstrap replicates,
+Holm and Benjamini–Hochberg adjusted p-values over all metric × agent tests (statsmodels), the
+leave-one-encoder-out error of predicting return from the metric, and the metric's cost.
 """
 
 from __future__ import annotations
@@ -66,7 +72,8 @@ def batch_coefficients(x: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
 
 def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence[float]], *,
               higher_is_better: bool, n_bootstrap: int = 1000, confidence: float = 0.95,
-              seed: int = 0) -> dict[str, Any]:
+              seed: int = 0, metric_replicates: Mapping[str, Sequence[float]] | None = None
+              ) -> dict[str, Any]:
     """Correlate a metric with RL return across encoders.
 
     Args:
@@ -74,6 +81,11 @@ def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence
         returns: encoder → final evaluation returns, one per seed.
         higher_is_better: the metric's direction (values are sign-flipped when False).
         n_bootstrap: bootstrap resamples for the intervals.
+        metric_replicates: encoder → the metric's own bootstrap replicates
+            (``extras["bootstrap_replicates"]``). When given, every bootstrap resample draws
+            each encoder's metric value from its replicates, so the interval carries the
+            metric's estimation noise as well as the encoder and seed sampling. Encoders
+            without replicates keep their point value.
 
     Returns:
         ``{"n_encoders", "<method>", "<method>_p", "<method>_ci_low", "<method>_ci_high"}`` for
@@ -106,7 +118,17 @@ def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence
     mask = np.arange(n_seeds)[None, None, :] < sizes[idx][:, :, None]
     picked = np.take_along_axis(padded[idx], draws, axis=2)
     yb = (picked * mask).sum(2) / sizes[idx]
-    boot = batch_coefficients(x[idx], yb)
+    xb = x[idx]
+    if metric_replicates:
+        reps = [np.asarray(metric_replicates.get(e) or [metric_values[e]], dtype=float)
+                for e in names]
+        reps = [r[np.isfinite(r)] if np.isfinite(r).any() else np.array([metric_values[e]])
+                for r, e in zip(reps, names, strict=True)]
+        n_reps = np.array([r.size for r in reps])
+        padded_x = np.array([np.resize(r, n_reps.max()) for r in reps])
+        pick = (rng.random(idx.shape) * n_reps[idx]).astype(int)
+        xb = sign * padded_x[idx, pick]
+    boot = batch_coefficients(xb, yb)
     alpha = (1.0 - confidence) / 2.0
     for m in METHODS:
         finite = boot[m][np.isfinite(boot[m])]
@@ -129,3 +151,128 @@ def mean_ci(values: Sequence[float], confidence: float = 0.95) -> tuple[float, f
                                                                 else float("nan"))
     half = float(stats.sem(a) * stats.t.ppf(0.5 + confidence / 2.0, a.size - 1))
     return mean, mean - half, mean + half
+
+
+# -- the metric leaderboard: scopes, multiple testing, prediction, cost -------------------------
+BASELINE_FAMILY = "baseline"
+SCOPES = ("all", "learned")
+
+
+def adjust_pvalues(pvalues: Sequence[float], method: str) -> np.ndarray:
+    """Multiple-comparison adjusted p-values (statsmodels ``multipletests``); NaN stays NaN.
+
+    ``method``: ``"holm"`` (family-wise error) or ``"fdr_bh"`` (Benjamini–Hochberg false
+    discovery rate).
+    """
+    from statsmodels.stats.multitest import multipletests
+
+    p = np.asarray(pvalues, dtype=float)
+    out = np.full(p.shape, np.nan)
+    ok = np.isfinite(p)
+    if ok.any():
+        out[ok] = multipletests(p[ok], method=method)[1]
+    return out
+
+
+def leave_one_out(metric_values: Mapping[str, float], mean_returns: Mapping[str, float], *,
+                  higher_is_better: bool = True) -> dict[str, Any]:
+    """Leave-one-encoder-out prediction of return from the metric by a straight line.
+
+    For each encoder, a least-squares line return ~ metric is fit on the other encoders and
+    predicts the left-out one. Returns ``{"predictions": {encoder: value}, "loo_rmse",
+    "loo_mae", "loo_rmse_ratio"}``; the ratio divides by the RMSE of predicting each left-out
+    encoder by the others' mean return (< 1: the metric predicts better than knowing nothing).
+    NaN with fewer than 4 encoders (a line through 2 points extrapolates wildly). The
+    direction does not change a line's predictions; ``higher_is_better`` is accepted for
+    symmetry with :func:`correlate`.
+    """
+    names = [e for e in metric_values if e in mean_returns
+             and np.isfinite(metric_values[e]) and np.isfinite(mean_returns[e])]
+    nan = float("nan")
+    if len(names) < 4:
+        return {"predictions": {}, "loo_rmse": nan, "loo_mae": nan, "loo_rmse_ratio": nan}
+    x = np.array([metric_values[e] for e in names], dtype=float)
+    y = np.array([mean_returns[e] for e in names], dtype=float)
+    pred, base = np.empty_like(y), np.empty_like(y)
+    for i in range(len(names)):
+        keep = np.arange(len(names)) != i
+        base[i] = y[keep].mean()
+        if np.ptp(x[keep]) == 0:
+            pred[i] = base[i]
+        else:
+            slope, intercept = np.polyfit(x[keep], y[keep], 1)
+            pred[i] = slope * x[i] + intercept
+    rmse = float(np.sqrt(np.mean((pred - y) ** 2)))
+    base_rmse = float(np.sqrt(np.mean((base - y) ** 2)))
+    return {"predictions": dict(zip(names, pred.tolist(), strict=True)), "loo_rmse": rmse,
+            "loo_mae": float(np.mean(np.abs(pred - y))),
+            "loo_rmse_ratio": rmse / base_rmse if base_rmse > 0 else nan}
+
+
+def metric_leaderboard(metric_rows: Sequence[Mapping[str, Any]],
+                       rl_rows: Sequence[Mapping[str, Any]], families: Mapping[str, str],
+                       directions: Mapping[str, bool], *, n_bootstrap: int = 1000,
+                       seed: int = 0) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Which metric predicts return: one row per task × agent × metric, and LOO predictions.
+
+    Inputs are plain records: ``metric_rows`` with task, encoder, metric, value and optional
+    ``extras["bootstrap_replicates"]`` and ``time_s``; ``rl_rows`` with task, encoder, agent,
+    eval_return (one per seed); ``families`` encoder → family (``"baseline"`` or a learned
+    family). For both scopes, ``all`` encoders and the ``learned`` ones (family not
+    ``"baseline"``), each row has the Spearman ρ with its bootstrap interval (encoders, seeds
+    and each encoder's metric replicates resampled; :func:`correlate`), scipy's p-value and
+    the Holm and Benjamini–Hochberg adjusted p-values over all metric × agent tests of the
+    task and scope; then the leave-one-encoder-out error over all encoders
+    (:func:`leave_one_out`) and the metric's mean compute time per encoder in seconds.
+    Inference is at the seed level: an encoder's return is the mean of its seeds' evaluation
+    returns, and the bootstrap resamples seeds, never episodes.
+
+    Returns ``(rows, predictions)`` with ``predictions[(task, agent, metric)]`` =
+    encoder → LOO-predicted return.
+    """
+    returns: dict[tuple[str, str], dict[str, list[float]]] = {}
+    for r in rl_rows:
+        returns.setdefault((r["task"], r["agent"]), {}).setdefault(r["encoder"], []).append(
+            float(r["eval_return"]))
+    values: dict[tuple[str, str], dict[str, float]] = {}
+    reps: dict[tuple[str, str], dict[str, list[float]]] = {}
+    cost: dict[tuple[str, str], list[float]] = {}
+    for r in metric_rows:
+        key = (r["task"], r["metric"])
+        values.setdefault(key, {})[r["encoder"]] = float(r["value"])
+        rep = (r.get("extras") or {}).get("bootstrap_replicates")
+        if rep:
+            reps.setdefault(key, {})[r["encoder"]] = [float(v) for v in rep if v is not None]
+        if r.get("time_s") is not None:
+            cost.setdefault(key, []).append(float(r["time_s"]))
+    rows: list[dict[str, Any]] = []
+    predictions: dict[tuple[str, str, str], dict[str, float]] = {}
+    for (task, agent), ret in sorted(returns.items()):
+        for (t2, metric), vals in sorted(values.items()):
+            if t2 != task:
+                continue
+            hib = bool(directions.get(metric, True))
+            row: dict[str, Any] = {"task": task, "agent": agent, "metric": metric}
+            for scope in SCOPES:
+                keep = {e: v for e, v in vals.items()
+                        if scope == "all" or families.get(e, "learned") != BASELINE_FAMILY}
+                c = correlate(keep, ret, higher_is_better=hib, n_bootstrap=n_bootstrap,
+                              seed=seed, metric_replicates=reps.get((task, metric)))
+                row[f"n_{scope}"] = c["n_encoders"]
+                for k in ("", "_ci_low", "_ci_high", "_p"):
+                    row[f"spearman_{scope}{k}"] = c[f"spearman{k}"]
+            means = {e: float(np.mean(r)) for e, r in ret.items() if len(r)}
+            loo = leave_one_out(vals, means, higher_is_better=hib)
+            predictions[(task, agent, metric)] = loo.pop("predictions")
+            row.update(loo)
+            times = cost.get((task, metric), [])
+            row["cost_s"] = float(np.mean(times)) if times else float("nan")
+            rows.append(row)
+    for task in sorted({r["task"] for r in rows}):
+        idx = [i for i, r in enumerate(rows) if r["task"] == task]
+        for scope in SCOPES:
+            p = [rows[i][f"spearman_{scope}_p"] for i in idx]
+            for method, col in (("holm", "holm"), ("fdr_bh", "bh")):
+                for i, q in zip(idx, adjust_pvalues(p, method), strict=True):
+                    rows[i][f"spearman_{scope}_p_{col}"] = float(q)
+    return rows, predictions

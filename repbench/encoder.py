@@ -42,8 +42,9 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
-from repbench.dataset import FT, IMAGE, PROPRIO, Dataset, as_observation_batch
+from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset, as_observation_batch
 from repbench.errors import DataError, RepbenchError
+from repbench.references import import_reference
 
 E = TypeVar("E", bound="Encoder")
 
@@ -57,8 +58,17 @@ class Encoder(abc.ABC):
     tensors; the base class takes care of files.
     """
 
+    #: Declared version of what this plugin computes. Part of every stage key and result record
+    #: in place of the source code: bump it when a change alters results; editing docstrings or
+    #: refactoring needs no bump. Older records then show as stale (:mod:`repbench.records`).
+    version: ClassVar[int] = 0
+
     #: Modalities ``encode`` reads; batches lacking one are rejected with a clear error.
     required_modalities: ClassVar[tuple[str, ...]] = (IMAGE, FT, PROPRIO)
+    #: Which kind of encoder this is, for the leaderboard's within-family correlations:
+    #: ``"baseline"`` (oracles, untrained, blind or classical references) or a learned family
+    #: (``"vae"``, ``"contrastive"``, ``"supervised"``, ...; default ``"learned"``).
+    family: ClassVar[str] = "learned"
 
     # -- to implement --------------------------------------------------------------------------
     @abc.abstractmethod
@@ -96,6 +106,14 @@ class Encoder(abc.ABC):
                 )
             setattr(self, key, value)
         return self
+
+    def check_params(self) -> None:  # noqa: B027 (a hook: the default accepts everything)
+        """Raise :class:`repbench.errors.ConfigError` for an invalid hyperparameter.
+
+        The planner calls it on a freshly constructed encoder, so a bad value in a suite file
+        fails before anything runs. The default accepts everything; override it (and call it
+        from ``fit``) when some values are invalid.
+        """
 
     @property
     def is_fitted(self) -> bool:
@@ -153,8 +171,6 @@ class Encoder(abc.ABC):
             raise DataError(f"{path} is not a repbench encoder file")
         target: type[Encoder] = cls
         if cls is Encoder or inspect.isabstract(cls):
-            from repbench.registry import import_reference
-
             target = import_reference(payload["class"])
         encoder = target(**payload["params"])
         encoder.set_state(_from_saved(payload["state"]))
@@ -163,6 +179,39 @@ class Encoder(abc.ABC):
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
         return f"{type(self).__name__}({args})"
+
+
+class TrueStateEncoder(Encoder):
+    """z = z°: the privileged true state itself (float32); its latent size is the task's state size.
+
+    Defined once, here: the ``oracle`` encoder plugin, the full-state agent's observation and the
+    conformance kit's default encoder all use it.
+    """
+
+    required_modalities = (TRUE_STATE,)
+
+    def __init__(self) -> None:
+        pass
+
+    def fit(self: E, dataset: Dataset) -> E:
+        """Record the true-state size."""
+        self.state_dim_ = int(dataset.true_state.shape[1])
+        return self
+
+    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
+        """Return ``observations["true_state"]`` as float32 [N, S]."""
+        self.check_is_fitted()
+        z = self.check_observations(observations)[TRUE_STATE]
+        if z.ndim != 2 or z.shape[1] != self.state_dim_:
+            raise DataError(f"{type(self).__name__}: modality {TRUE_STATE!r} must have shape "
+                            f"[N, {self.state_dim_}] as at fit time, got {list(z.shape)}")
+        return np.array(z, dtype=np.float32, copy=True)
+
+    @property
+    def latent_dim(self) -> int:
+        """S, known after ``fit``."""
+        self.check_is_fitted()
+        return self.state_dim_
 
 
 def _to_saveable(value: Any) -> Any:

@@ -146,6 +146,8 @@ class RayExecutor:
 def make_executor(kind: str, store_root: str, workers: int | None = None,
                   ray_address: str | None = None) -> Any:
     """``local`` (in-process when workers == 1, else a process pool) or ``ray``."""
+    if workers is not None and workers < 1:
+        raise ConfigError(f"workers must be at least 1, got {workers}")
     if kind == "local":
         n = workers or os.cpu_count() or 1
         return InProcessExecutor(store_root) if n <= 1 else LocalPoolExecutor(store_root, n)

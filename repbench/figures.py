@@ -5,7 +5,9 @@
 * ``learning_curves.png`` — return against training steps (Fig. 3b);
 * ``latent_distance.png`` — E‖z_n − z_{n+T}‖ against the offset T (Fig. 5a);
 * ``smoothness_hist.png`` — ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ histograms (Fig. 5b);
-* ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a).
+* ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a);
+* ``predicted_vs_actual.png`` — each encoder's return predicted leave-one-encoder-out by the
+  metric with the lowest LOO error, against its actual mean return (one panel per agent).
 """
 
 from __future__ import annotations
@@ -111,6 +113,34 @@ def learning_curves(res: Any, path: Path) -> Path | None:
         ax.set_ylabel("return", fontsize=8)
         ax.tick_params(labelsize=7)
     axes[0][-1].legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def privileged_curve(res: Any, path: Path) -> Path | None:
+    """Success rate and return of the privileged agent during training (its kept step
+    marked)."""
+    runs = {label: info for label, info in res.provenance.get("datasets", {}).items()
+            if info.get("curve_steps")}
+    if not runs:
+        return None
+    fig, (ax_s, ax_r) = plt.subplots(1, 2, figsize=(8, 3))
+    for label, info in sorted(runs.items()):
+        steps = info["curve_steps"]
+        ax_s.plot(steps, info["curve_success"], marker=".", label=label)
+        ax_r.plot(steps, info["curve_return"], marker=".", label=label)
+        kept = info.get("extras", {}).get("kept_step")
+        if kept is not None:
+            for ax in (ax_s, ax_r):
+                ax.axvline(kept, color="grey", lw=0.8, ls=":")
+    ax_s.set_ylim(-0.03, 1.03)
+    ax_s.set_ylabel("success rate", fontsize=8)
+    ax_r.set_ylabel("return", fontsize=8)
+    for ax in (ax_s, ax_r):
+        ax.set_xlabel("environment steps", fontsize=8)
+        ax.tick_params(labelsize=7)
+    ax_r.legend(fontsize=6)
+    fig.suptitle("Privileged agent during training (dotted: the kept policy)", fontsize=9)
     fig.tight_layout()
     return save_figure(fig, path)
 
@@ -229,15 +259,59 @@ _STORE_FIGURE_TITLES = {"reconstructions": "Reconstructions: {} (appendix figure
                         "loss_curves": "Training curves: {} (train and held-out loss per epoch)"}
 
 
+def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
+    """Leave-one-encoder-out predicted return (best metric by LOO error) vs actual mean return,
+    one panel per task × agent, with the seeds' 95 % t-interval and the diagonal."""
+    preds = getattr(res, "loo_predictions", None) or {}
+    if ranking is None or ranking.empty or "loo_rmse" not in ranking or not preds:
+        return None
+    best = (ranking[np.isfinite(ranking["loo_rmse"])].sort_values("loo_rmse")
+            .groupby(["task", "agent"], sort=True).head(1))
+    if best.empty:
+        return None
+    fig, axes = plt.subplots(1, len(best), squeeze=False, figsize=(4.2 * len(best), 3.8))
+    for ax, (_, b) in zip(axes[0], best.iterrows(), strict=True):
+        pred = preds.get((b["task"], b["agent"], b["metric"]), {})
+        rets: dict[str, list[float]] = {}
+        for r in res.rl_rows:
+            if r["task"] == b["task"] and r["agent"] == b["agent"]:
+                rets.setdefault(r["encoder"], []).append(r["eval_return"])
+        colors = _colors(list(pred))
+        lims = []
+        for enc, yhat in pred.items():
+            if enc not in rets:
+                continue
+            m, lo, hi = mean_ci(rets[enc])
+            yerr = [[m - lo], [hi - m]] if np.isfinite(lo) else None
+            ax.errorbar(yhat, m, yerr=yerr, fmt="o", color=colors[enc], ms=5, capsize=2)
+            ax.annotate(enc, (yhat, m), fontsize=6, xytext=(3, 3), textcoords="offset points")
+            lims += [yhat, m]
+        if lims:
+            lo_, hi_ = min(lims), max(lims)
+            ax.plot([lo_, hi_], [lo_, hi_], color="#999", lw=0.8, ls="--")
+        ax.set_xlabel(f"predicted from {b['metric']} (leave one encoder out)")
+        ax.set_ylabel(f"{b['agent']} return (mean over seeds)")
+        ax.set_title(f"{b['task']} {b['agent']}: LOO RMSE {b['loo_rmse']:.3g} "
+                     f"(ratio {b['loo_rmse_ratio']:.2f})", fontsize=9)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
     """Render every figure that the results support; name → PNG path."""
 
     def scatter(r: Any, p: Path) -> Path | None:
         return metric_vs_return(r, p, metrics_df)
 
+    def predicted(r: Any, p: Path) -> Path | None:
+        return predicted_vs_actual(r, p, metrics_df)
+
     makers = {
+        "Predicted vs actual return (best metric, leave one encoder out)": (
+            predicted, "predicted_vs_actual"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
+        "Privileged agent learning curve": (privileged_curve, "privileged_curve"),
         "Latent distance vs time offset (Fig. 5a)": (latent_distance, "latent_distance"),
         "Encoder smoothness histogram (Fig. 5b)": (smoothness_hist, "smoothness_hist"),
         "True-state differences (Fig. 6a)": (true_state_diffs, "true_state_diffs"),

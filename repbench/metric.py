@@ -11,134 +11,56 @@ Register it with the decorator, which also validates inputs before the function 
 
     @repbench.metric("my_metric", higher_is_better=True, description="...")
     def my_metric(z, z_true, episode, rng, *, k=5) -> MetricResult: ...
+
+Extra arrays. A metric that needs more than ``(z, z_true, episode)`` declares keyword-only
+parameters named after the arrays the latents stage stores (:data:`EXTRA_INPUTS`):
+``robot_state`` (float ``[N, R]``: what the agent sees beside z, ``Task.robot_state``),
+``task_state`` (float ``[N, K]``: ``Task.task_state``, e.g. the peg tip's offset from the hole),
+``action`` (float ``[N, A]``: the dataset's action at each step; on the on-policy dataset the
+privileged agent's) and ``source`` (int ``[N]``: which dataset a row came from). The metric stage
+passes exactly the ones the function's signature names; the wrapper checks their shape and values.
+
+Rows. ``rows="on_policy"`` in the decorator makes the metric stage compute the metric on the
+on-policy dataset's rows only (the paper's choice for smoothness and latent distances; needed for
+the expert-action probe); the default ``"all"`` uses every row the latents stage stored (the
+held-out backwards-exploration episodes and the on-policy episodes).
 """
 
 from __future__ import annotations
 
-import functools
-import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable
 
-import numpy as np
+from repbench.metric_types import (
+    EXTRA_INPUTS,
+    ROWS,
+    Metric,
+    MetricResult,
+    check_extra_input,
+    check_metric_inputs,
+)
+from repbench.registry import metrics
 
-from repbench.errors import DataError
-
-
-@dataclass(frozen=True)
-class MetricResult:
-    """One metric's value with its direction, uncertainty and details.
-
-    Attributes:
-        value: the scalar score.
-        higher_is_better: direction, used by correlation and leaderboards.
-        ci_low, ci_high: confidence interval (bootstrap or repeated seeds), when available.
-        extras: JSON-serializable details: per-dimension values, curves, histograms.
-    """
-
-    value: float
-    higher_is_better: bool
-    ci_low: float | None = None
-    ci_high: float | None = None
-    extras: Mapping[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "higher_is_better": self.higher_is_better,
-                "ci_low": self.ci_low, "ci_high": self.ci_high, "extras": _jsonable(self.extras)}
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> MetricResult:
-        return cls(value=float(d["value"]), higher_is_better=bool(d["higher_is_better"]),
-                   ci_low=d.get("ci_low"), ci_high=d.get("ci_high"),
-                   extras=dict(d.get("extras") or {}))
-
-
-class Metric:
-    """A registered metric function with its direction, description and input checks."""
-
-    def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
-                 description: str = "", min_samples: int = 10, needs_episodes: bool = False
-                 ) -> None:
-        self.fn = fn
-        self.name = name
-        self.higher_is_better = higher_is_better
-        self.description = description or (fn.__doc__ or "").strip().split("\n")[0]
-        self.min_samples = min_samples
-        self.needs_episodes = needs_episodes
-        functools.update_wrapper(self, fn)
-        self.__doc__ = fn.__doc__ or self.description
-
-    def __call__(self, z: np.ndarray, z_true: np.ndarray, episode: np.ndarray | None = None,
-                 rng: np.random.Generator | int | None = None, **params: Any) -> MetricResult:
-        z, z_true, episode = check_metric_inputs(
-            z, z_true, episode, name=self.name, min_samples=self.min_samples,
-        )
-        if not isinstance(rng, np.random.Generator):
-            rng = np.random.default_rng(0 if rng is None else rng)
-        result = self.fn(z, z_true, episode, rng, **params)
-        if not isinstance(result, MetricResult):
-            raise TypeError(f"metric {self.name!r} returned {type(result)}, not MetricResult")
-        if result.higher_is_better != self.higher_is_better:
-            raise TypeError(f"metric {self.name!r} returned a result with the wrong direction")
-        return result
-
-    def __repr__(self) -> str:
-        return f"<Metric {self.name} ({'higher' if self.higher_is_better else 'lower'} is better)>"
+__all__ = ["EXTRA_INPUTS", "ROWS", "Metric", "MetricResult", "check_extra_input",
+           "check_metric_inputs", "metric"]
 
 
 def metric(name: str, *, higher_is_better: bool, description: str = "", min_samples: int = 10,
-           register: bool = True) -> Callable[[Callable[..., MetricResult]], Metric]:
-    """Decorator turning a function into a :class:`Metric` (and registering it by default)."""
+           register: bool = True, version: int = 0, rows: str = "all"
+           ) -> Callable[[Callable[..., MetricResult]], Metric]:
+    """Decorator turning a function into a :class:`Metric` (and registering it by default).
+
+    ``rows`` (``"all"`` or ``"on_policy"``) says which rows of the stored latents the metric
+    stage computes it on (module docstring).
+
+    ``version``: bump it when a change alters the metric's values; stored results of the older
+    version then show as stale instead of being reused (:mod:`repbench.records`).
+    """
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:
-        m = Metric(fn, name, higher_is_better, description, min_samples)
+        m = Metric(fn, name, higher_is_better, description, min_samples, version=version,
+                   rows=rows)
         if register:
-            from repbench.registry import metrics
-
             metrics.register(name, m)
         return m
 
     return wrap
-
-
-def check_metric_inputs(z: Any, z_true: Any, episode: Any = None, *, name: str = "metric",
-                        min_samples: int = 10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Validate and convert metric inputs; raise DataError with a one-line message."""
-    z = np.asarray(z, dtype=np.float64)
-    z_true = np.asarray(z_true, dtype=np.float64)
-    for label, arr in (("z", z), ("z_true", z_true)):
-        if arr.ndim != 2:
-            raise DataError(f"{name}: {label} must be 2-D [samples, dims], got shape {arr.shape}")
-        if not np.isfinite(arr).all():
-            bad = int((~np.isfinite(arr)).any(axis=1).sum())
-            raise DataError(f"{name}: {label} has NaN/inf in {bad} rows; drop or fix them first")
-    if z.shape[0] != z_true.shape[0]:
-        raise DataError(
-            f"{name}: z has {z.shape[0]} rows but z_true has {z_true.shape[0]}; they must align"
-        )
-    if z.shape[0] < min_samples:
-        raise DataError(f"{name}: needs at least {min_samples} samples, got {z.shape[0]}")
-    if episode is None:
-        episode = np.zeros(z.shape[0], dtype=np.int64)
-    episode = np.asarray(episode)
-    if episode.shape != (z.shape[0],):
-        raise DataError(f"{name}: episode must have shape ({z.shape[0]},), got {episode.shape}")
-    return z, z_true, episode
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, (np.floating, float)):
-        f = float(value)
-        return f if math.isfinite(f) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    return value

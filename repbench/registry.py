@@ -7,20 +7,30 @@ Plugins arrive three ways, all ending in the same table:
 * an entry point in the group ``repbench.<kind>`` of any installed distribution (repbench's own
   built-in plugins are found this way too), discovered on first lookup.
 
-Unknown names get close matches and the list of known names; duplicates are rejected.
+Unknown names get close matches and the list of known names; duplicates are rejected; every
+loaded plugin is checked against its kind's base (``Registry("encoder", base=Encoder)``).
+
+The bases are imported at the top: :mod:`repbench.encoder`, :mod:`repbench.task`,
+:mod:`repbench.agent` and :mod:`repbench.metric_types` never import this module, so the import
+graph has no circle (``tests/core/test_imports.py``). The ``@repbench.metric`` decorator, which
+registers, lives above it in :mod:`repbench.metric`.
 """
 
 from __future__ import annotations
 
 import difflib
-import importlib
 import inspect
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Any, Generic, TypeVar
 
+from repbench.agent import Agent
+from repbench.encoder import Encoder
 from repbench.errors import PluginError
+from repbench.metric_types import Metric
+from repbench.references import import_reference
+from repbench.task import Task
 
 T = TypeVar("T")
 
@@ -30,31 +40,6 @@ ENTRY_POINT_GROUPS = {
     "metric": "repbench.metrics",
     "agent": "repbench.agents",
 }
-
-
-def import_reference(reference: str) -> Any:
-    """Import ``"package.module:Attribute"`` (the attribute may be dotted) and return it."""
-    module_name, sep, attr_path = reference.partition(":")
-    if not sep or not module_name or not attr_path:
-        raise PluginError(
-            f"bad plugin reference {reference!r}: write it as 'package.module:Name'"
-        )
-    try:
-        obj: Any = importlib.import_module(module_name)
-    except ImportError as exc:
-        raise PluginError(
-            f"cannot import module {module_name!r} for plugin reference {reference!r}: {exc}; "
-            "is the package installed?"
-        ) from exc
-    for part in attr_path.split("."):
-        try:
-            obj = getattr(obj, part)
-        except AttributeError:
-            raise PluginError(
-                f"module {module_name!r} has no attribute {attr_path!r} "
-                f"(plugin reference {reference!r})"
-            ) from None
-    return obj
 
 
 @dataclass
@@ -74,6 +59,9 @@ class Registry(Generic[T]):
         entry_point_group: the ``importlib.metadata`` group discovered on first lookup.
         check: optional validator called on every loaded plugin; raise ``TypeError`` with a
             message to reject it.
+        base: the class every plugin must be (a subclass of, for classes; an instance of,
+            for objects such as :class:`~repbench.metric_types.Metric`).
+        hint: what to do when a plugin is not a ``base`` (appended to the rejection).
     """
 
     def __init__(
@@ -81,9 +69,14 @@ class Registry(Generic[T]):
         kind: str,
         entry_point_group: str | None = None,
         check: Callable[[str, Any], None] | None = None,
+        *,
+        base: type | None = None,
+        hint: str = "",
     ) -> None:
         self.kind = kind
         self.entry_point_group = entry_point_group
+        self.base = base
+        self._hint = hint
         self._check = check
         self._entries: dict[str, _Entry] = {}
         self._discovered = False
@@ -131,11 +124,14 @@ class Registry(Generic[T]):
         self._entries[entry.name] = entry
 
     def _validate(self, name: str, obj: Any) -> None:
-        if self._check is not None:
-            try:
+        try:
+            if self.base is not None and not _is_a(obj, self.base):
+                raise TypeError(f"expected {_kind_of(self.base)} repbench.{self.base.__name__}"
+                                f"{self._hint}, got {obj!r}")
+            if self._check is not None:
                 self._check(name, obj)
-            except TypeError as exc:
-                raise PluginError(f"{self.kind} {name!r} rejected: {exc}") from None
+        except TypeError as exc:
+            raise PluginError(f"{self.kind} {name!r} rejected: {exc}") from None
 
     # -- discovery ----------------------------------------------------------------------------
     def discover(self, *, force: bool = False) -> None:
@@ -213,41 +209,26 @@ def _same_plugin(a: _Entry, b: _Entry) -> bool:
     return _describe_target(a) == _describe_target(b)
 
 
-def _check_encoder(name: str, obj: Any) -> None:
-    from repbench.encoder import Encoder
-
-    if not (inspect.isclass(obj) and issubclass(obj, Encoder)):
-        raise TypeError(f"expected a subclass of repbench.Encoder, got {obj!r}")
-
-
-def _check_task(name: str, obj: Any) -> None:
-    from repbench.task import Task
-
-    if not (inspect.isclass(obj) and issubclass(obj, Task)):
-        raise TypeError(f"expected a subclass of repbench.Task, got {obj!r}")
+def _is_a(obj: Any, base: type) -> bool:
+    if base is Metric:  # metrics are registered as Metric objects, not classes
+        return isinstance(obj, base)
+    return inspect.isclass(obj) and issubclass(obj, base)
 
 
-def _check_agent(name: str, obj: Any) -> None:
-    from repbench.agent import Agent
-
-    if not (inspect.isclass(obj) and issubclass(obj, Agent)):
-        raise TypeError(f"expected a subclass of repbench.Agent, got {obj!r}")
+def _kind_of(base: type) -> str:
+    return "a" if base is Metric else "a subclass of"
 
 
-def _check_metric(name: str, obj: Any) -> None:
-    from repbench.metric import Metric
+tasks: Registry[type[Task]] = Registry("task", ENTRY_POINT_GROUPS["task"], base=Task)
+encoders: Registry[type[Encoder]] = Registry("encoder", ENTRY_POINT_GROUPS["encoder"],
+                                             base=Encoder)
+metrics: Registry[Metric] = Registry(
+    "metric", ENTRY_POINT_GROUPS["metric"], base=Metric,
+    hint=" (decorate the function with @repbench.metric(...))")
+agents: Registry[type[Agent]] = Registry("agent", ENTRY_POINT_GROUPS["agent"], base=Agent)
 
-    if not isinstance(obj, Metric):
-        raise TypeError(
-            "expected a repbench.Metric (decorate the function with @repbench.metric(...)), "
-            f"got {obj!r}"
-        )
-
-
-tasks: Registry[Any] = Registry("task", ENTRY_POINT_GROUPS["task"], _check_task)
-encoders: Registry[Any] = Registry("encoder", ENTRY_POINT_GROUPS["encoder"], _check_encoder)
-metrics: Registry[Any] = Registry("metric", ENTRY_POINT_GROUPS["metric"], _check_metric)
-agents: Registry[Any] = Registry("agent", ENTRY_POINT_GROUPS["agent"], _check_agent)
+__all__ = ["ENTRY_POINT_GROUPS", "REGISTRIES", "Registry", "agents", "encoders",
+           "import_reference", "metrics", "tasks"]
 
 REGISTRIES: dict[str, Registry[Any]] = {
     "tasks": tasks,

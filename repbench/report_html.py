@@ -28,6 +28,8 @@ td.txt,th.txt{text-align:left}tr:hover td{background:#fafbff}
 .ci{color:#889;font-size:11px}.fig{margin:12px 0}.fig img{max-width:100%;border:1px solid #eee}
 .note{background:#f7f7fa;border-left:3px solid #99a;padding:8px 12px;font-size:13px}
 code{background:#f2f2f6;padding:1px 4px;border-radius:3px}
+tr.stale td{color:#8a8f99;font-style:italic}
+tr.highlight td{background:#fff3c4;font-weight:600}
 """
 
 _JS = """
@@ -64,8 +66,10 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True) -> str:
-    """HTML table; ``x_ci_low``/``x_ci_high`` columns fold into the cell of ``x``."""
+def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True,
+           row_class: Any = None) -> str:
+    """HTML table; ``x_ci_low``/``x_ci_high`` columns fold into the cell of ``x``;
+    ``row_class(row)`` gives an optional CSS class per row."""
     if df.empty:
         return "<p>No results yet.</p>"
     cols = [c for c in df.columns if not (ci_cols and (c.endswith("_ci_low")
@@ -86,7 +90,8 @@ def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True) -> str:
                 text += f' <span class="ci">[{_fmt(float(lo))}, {_fmt(float(hi))}]</span>'
             cls = "txt" if isinstance(val, str) else ""
             cells.append(f'<td class="{cls}" data-v="{html.escape(str(sort_v))}">{text}</td>')
-        body.append("<tr>" + "".join(cells) + "</tr>")
+        cls_attr = f' class="{row_class(row)}"' if row_class and row_class(row) else ""
+        body.append(f"<tr{cls_attr}>" + "".join(cells) + "</tr>")
     return (f'<table class="sortable" id="{table_id}"><thead><tr>{head}</tr></thead>'
             f"<tbody>{''.join(body)}</tbody></table>")
 
@@ -94,6 +99,61 @@ def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True) -> str:
 def _img(path: Path, alt: str) -> str:
     data = base64.b64encode(path.read_bytes()).decode()
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def _privileged_section(prov: dict[str, Any]) -> list[str]:
+    """The privileged agent (it collects the on-policy data and sets the ceiling)."""
+    rows = []
+    for label, info in sorted(prov.get("datasets", {}).items()):
+        if "eval_success_rate" in info:
+            rows.append(
+                f"<li>{html.escape(label)}: success {info['eval_success_rate']:.0%}, return "
+                f"{info.get('eval_return', float('nan')):.1f} on the fixed evaluation episodes "
+                f"(policy kept at step {info.get('extras', {}).get('kept_step')})</li>")
+        elif "contact_share" in info:
+            rows.append(
+                f"<li>{html.escape(label)}: {info.get('n_steps')} steps, success share "
+                f"{info.get('success_share', float('nan')):.1%}, contact share "
+                f"{info['contact_share']:.1%}</li>")
+    if not rows:
+        return []
+    return ["<h2>Privileged agent and its data</h2><p class='note'>SAC on the task-frame "
+            "state ⊕ robot state; it collects the on-policy dataset and sets the ceiling of "
+            "the returns above.</p><ul>", *rows, "</ul>"]
+
+
+def _encoder_row_class(res: Any) -> Any:
+    highlight = set(getattr(res, "highlight", []) or [])
+    stale = getattr(res, "stale", {}) or {}
+
+    def row_class(row: Any) -> str:
+        key = (row.get("task"), row.get("encoder"))
+        classes = (["highlight"] if row.get("encoder") in highlight else []) + (
+            ["stale"] if key in stale else [])
+        return " ".join(classes)
+
+    return row_class
+
+
+def _encoder_notes(res: Any) -> list[str]:
+    notes = [f"<p class='note'>⚠ {html.escape(w)}</p>" for w in getattr(res, "warnings", [])]
+    highlight = getattr(res, "highlight", []) or []
+    predictions = getattr(res, "predictions", []) or []
+    if highlight:
+        text = (f"Highlighted: {html.escape(', '.join(highlight))} — evaluated with "
+                "<code>repbench evaluate</code> against the reference records.")
+        for p in predictions:
+            text += html.escape(
+                f" Predicted {p['agent']} return of {p['encoder']}: "
+                f"{_fmt(p['predicted_return'])} [{_fmt(p['ci_low'])}, {_fmt(p['ci_high'])}]"
+                f" from {p['predictor']} ({p['method']}, {p['n_reference']} reference "
+                "encoders); no RL was run for it.")
+        notes.append(f"<p class='note' id='evaluated'>{text}</p>")
+    if getattr(res, "stale", None):
+        notes.append("<p class='note'>Rows in grey italics are <b>stale</b>: computed by an "
+                     "older version of a plugin than the one installed (column "
+                     "<code>stale</code>). Run the suite again to replace them.</p>")
+    return notes
 
 
 def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
@@ -106,11 +166,30 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
                  "pearson_ci_low", "pearson_ci_high", "pearson_p", "kendall", "kendall_ci_low",
                  "kendall_ci_high", "kendall_p"]
     met = metrics_df[[c for c in corr_cols if c in metrics_df.columns]]
+    rank_cols = ["agent", "metric", "spearman_learned", "spearman_learned_ci_low",
+                 "spearman_learned_ci_high", "spearman_learned_p_holm", "spearman_learned_p_bh",
+                 "n_learned", "spearman_all", "spearman_all_ci_low", "spearman_all_ci_high",
+                 "spearman_all_p_holm", "spearman_all_p_bh", "n_all", "loo_rmse",
+                 "loo_rmse_ratio", "cost_s"]
+    if len({*metrics_df.get("task", pd.Series(dtype=object))}) > 1:
+        rank_cols.insert(0, "task")
+    ranking = metrics_df[[c for c in rank_cols if c in metrics_df.columns]]
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         f"<p class='sub'>{html.escape(prov.get('description') or '')}</p>",
+        "<h2>Metric leaderboard</h2>",
+        "<p class='note'>Metrics ranked by their Spearman ρ with RL return <b>within the learned "
+        "encoders</b> (baselines such as the oracle and the untrained encoder excluded: they "
+        "anchor any pooled correlation), then over all encoders. Brackets: 95% bootstrap "
+        "interval resampling encoders, RL seeds and each encoder's metric estimate (its own "
+        "bootstrap replicates). p_holm / p_bh: Holm and Benjamini–Hochberg adjusted p-values "
+        "over all metric × agent tests. loo_rmse: error of predicting an encoder's mean return "
+        "from the metric by a line fit on the other encoders; ratio &lt; 1 beats predicting the "
+        "others' mean. cost_s: seconds to compute the metric for one encoder.</p>",
+        _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
+        else "<p>No correlations yet.</p>",
         "<h2>Which metric predicts RL performance?</h2>",
         "<p class='note'>Correlation across encoders between each metric and the final "
         "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "
@@ -119,9 +198,12 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         _table(met, "metrics"),
         "<h2>Which encoder is best?</h2>",
         "<p class='note'>One row per task × encoder: every metric with its confidence interval, "
-        "and per agent the evaluation return (mean and 95% t-interval over seeds) and success "
-        "rate.</p>",
-        _table(encoders_df, "encoders"),
+        "and per agent the evaluation return over seeds — mean and interquartile mean (IQM), "
+        "each with a stratified-bootstrap 95% interval (rliable; seeds are the unit of "
+        "inference) — and success rate on the fixed evaluation episodes.</p>",
+        *_encoder_notes(res),
+        _table(encoders_df, "encoders", row_class=_encoder_row_class(res)),
+        *_privileged_section(prov),
         "<h2>Figures</h2>",
     ]
     for name, path in figures.items():

@@ -8,19 +8,17 @@ redoes nothing that finished.
 
 from __future__ import annotations
 
-import hashlib
-import inspect
 import json
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from repbench.dataset import Dataset
-from repbench.errors import ConfigError
+from repbench.devices import torch_threads as limit_threads
+from repbench.records import RECORD_FILE, make_record, write_record
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.store import Store, stage_key
 
@@ -37,6 +35,9 @@ class StageSpec:
     config: Mapping[str, Any]
     inputs: Mapping[str, tuple[str, str]] = field(default_factory=dict)  # name → (kind, key)
     label: str = ""
+    #: What the stage computes, for its result record (:mod:`repbench.records`): task, data,
+    #: plugins with versions and parameters, seed. Not part of the key (the config is).
+    record: Mapping[str, Any] | None = field(default=None, compare=False)
 
     @property
     def key(self) -> str:
@@ -45,36 +46,6 @@ class StageSpec:
     @property
     def deps(self) -> list[tuple[str, str]]:
         return list(self.inputs.values())
-
-
-def code_version(obj: Any) -> str:
-    """Short hash of the source file defining ``obj``: editing a plugin invalidates its results."""
-    try:
-        src = inspect.getsourcefile(obj if inspect.isclass(obj) or inspect.isfunction(obj)
-                                    else type(obj))
-        if getattr(obj, "fn", None) is not None:  # repbench.Metric wraps a function
-            src = inspect.getsourcefile(obj.fn)
-    except TypeError:
-        src = None
-    if not src or not Path(src).is_file():
-        return "unknown"
-    return hashlib.sha256(Path(src).read_bytes()).hexdigest()[:12]
-
-
-def accepted_kwargs(factory: Callable[..., Any], params: Mapping[str, Any]) -> dict[str, Any]:
-    """The subset of ``params`` that ``factory``'s signature accepts."""
-    sig = inspect.signature(factory)
-    if any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
-        return dict(params)
-    return {k: v for k, v in params.items() if k in sig.parameters}
-
-
-def check_kwargs(owner: str, factory: Callable[..., Any], params: Mapping[str, Any]) -> None:
-    """Raise ConfigError if ``params`` has keys ``factory`` does not accept."""
-    unknown = set(params) - set(accepted_kwargs(factory, params))
-    if unknown:
-        valid = [p for p in inspect.signature(factory).parameters if p not in ("self",)]
-        raise ConfigError(f"{owner}: unknown parameter(s) {sorted(unknown)}; valid: {valid}")
 
 
 # -- stage implementations ---------------------------------------------------------------------
@@ -100,26 +71,36 @@ def _run_dataset(spec: StageSpec, store: Store, w: Any) -> None:
 
         art = store.get(FULL_STATE, spec.inputs["policy"][1])
         assert art is not None
-        policy = load_policy(art.file("model.zip"), task, Encoder.load(art.file("oracle.pt")))
+        policy = load_policy(art.file("model.zip"), task,
+                             Encoder.load(art.file("privileged_encoder.pt")))
     ds = task.collect(cfg["kind"], n_episodes=cfg["n_episodes"],
                       steps_per_episode=cfg["steps_per_episode"], seed=cfg["seed"],
                       policy=policy, progress=False)
     ds.save(w.file("dataset.npz"))
-    w.write_json({"n_steps": len(ds), "n_episodes": ds.n_episodes,
-                  "success_rate": float(ds.success.mean()), "metadata": ds.metadata})
+    w.write_json({"n_steps": len(ds), "n_episodes": ds.n_episodes, "checksum": ds.checksum(),
+                  "success_rate": float(ds.success.mean()),
+                  **{k: ds.metadata[k] for k in ("success_share", "contact_share")
+                     if k in ds.metadata},
+                  "metadata": ds.metadata})
 
 
 def _run_full_state(spec: StageSpec, store: Store, w: Any) -> None:
-    from repbench.rl.full_state import save_policy, train_full_state_agent
+    from repbench.rl.full_state import (
+        fitted_privileged_encoder,
+        save_policy,
+        train_full_state_agent,
+    )
 
     cfg = spec.config
     task = _make_task(cfg)
     dataset = _load_dataset(store, spec.inputs["dataset"][1])
+    encoder = fitted_privileged_encoder(task, dataset, cfg["seed"], cfg["encoder"])
     policy, result = train_full_state_agent(
-        task, train_steps=cfg["train_steps"], seed=cfg["seed"], dataset=dataset,
-        eval_episodes=cfg["eval_episodes"], progress=False, **cfg["agent_params"])
+        task, train_steps=cfg["train_steps"], seed=cfg["seed"], encoder=encoder,
+        eval_episodes=cfg["eval_episodes"], curve_points=cfg["curve_points"], progress=False,
+        **cfg["agent_params"])
     save_policy(policy.model, w.file("model.zip"))
-    policy.encoder.save(w.file("oracle.pt"))
+    policy.encoder.save(w.file("privileged_encoder.pt"))
     w.write_json(result.to_dict())
 
 
@@ -132,7 +113,8 @@ def _run_encoder(spec: StageSpec, store: Store, w: Any) -> None:
     fit_time = time.time() - start
     enc.save(w.file("encoder.pt"))
     w.write_json({"latent_dim": int(enc.latent_dim), "fit_time_s": fit_time,
-                  "params": enc.get_params(), **_save_fit_history(enc, cfg["encoder"], w)})
+                  "params": enc.get_params(), "family": str(getattr(cls, "family", "learned")),
+                  **_save_fit_history(enc, cfg["encoder"], w)})
     figure = getattr(enc, "save_reconstruction_figure", None)
     if callable(figure):
         try:
@@ -164,6 +146,13 @@ def _save_fit_history(enc: Any, name: str, w: Any) -> dict[str, Any]:
 
 
 def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
+    """Encode the metric datasets; store z with the arrays metrics may ask for.
+
+    ``latents.npz`` holds ``z``, ``z_true``, ``episode``, ``step``, ``source`` (index into
+    ``source_names``: which dataset a row came from), ``action`` (the dataset's actions; on the
+    on-policy dataset the privileged agent's), ``robot_state`` (``Task.robot_state``: what the
+    agent sees beside z) and ``task_state`` (``Task.task_state``; absent for a task without one).
+    """
     from repbench.encoder import Encoder
 
     enc_art = store.get(ENCODER, spec.inputs["encoder"][1])
@@ -176,22 +165,56 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
     batch = 256
     z = np.concatenate([enc.encode(data.obs(slice(i, i + batch)))
                         for i in range(0, len(data), batch)])
-    np.savez_compressed(w.file("latents.npz"), z=z.astype(np.float32), z_true=data.true_state,
-                        episode=data.episode, step=data.step, source=source)
-    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": z.shape[1]})
+    arrays: dict[str, np.ndarray] = {
+        "z": z.astype(np.float32), "z_true": data.true_state, "episode": data.episode,
+        "step": data.step, "source": source, "source_names": np.array([n for n, _ in parts]),
+        "action": data.action}
+    notes: dict[str, Any] = {}
+    if "task" in spec.config:
+        task = _make_task(spec.config["task"])
+        arrays["robot_state"] = np.asarray(task.robot_state(data.obs()), dtype=np.float32)
+        try:
+            arrays["task_state"] = np.asarray(task.task_state(data.obs()), dtype=np.float32)
+        except NotImplementedError as exc:
+            notes["task_state"] = str(exc)
+    np.savez_compressed(w.file("latents.npz"), **arrays)
+    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": z.shape[1],
+                  "arrays": sorted(arrays), **notes})
+
+
+def metric_rows(rows: str, source: np.ndarray, source_names: list[str]
+                ) -> tuple[np.ndarray, str]:
+    """Row indices a metric declared with ``rows`` is computed on, and a description.
+
+    ``"on_policy"`` selects the rows of the on-policy dataset; when the latents have none (a
+    suite without on-policy data) it falls back to every row and says so.
+    """
+    everything = np.arange(len(source))
+    if rows == "all":
+        return everything, "all: " + " + ".join(source_names)
+    if rows in source_names:
+        return np.flatnonzero(source == source_names.index(rows)), rows
+    return everything, f"all: {' + '.join(source_names)} (no {rows} rows stored)"
 
 
 def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
     cfg = spec.config
     art = store.get(LATENTS, spec.inputs["latents"][1])
     assert art is not None
-    with np.load(art.file("latents.npz")) as f:
-        z, z_true, episode = f["z"], f["z_true"], f["episode"]
     fn = metrics.get(cfg["metric"])
+    with np.load(art.file("latents.npz")) as f:
+        arrays = {k: f[k] for k in f.files}
+    names = [str(n) for n in arrays.get("source_names", art.read_json().get("sources", []))]
+    source = arrays.get("source", np.zeros(len(arrays["z"]), dtype=np.int64))
+    idx, rows_used = metric_rows(cfg.get("rows", getattr(fn, "rows", "all")), source, names)
+    extra = {k: arrays[k][idx] for k in getattr(fn, "extra_inputs", ()) if k in arrays}
     start = time.time()
-    result = fn(z, z_true, episode, np.random.default_rng(cfg["seed"]), **cfg["params"])
+    result = fn(arrays["z"][idx], arrays["z_true"][idx], arrays["episode"][idx],
+                np.random.default_rng(cfg["seed"]), **extra, **cfg["params"])
     out = result.to_dict()
     out["time_s"] = time.time() - start
+    out["rows"] = rows_used
+    out["n_rows"] = int(idx.size)
     w.write_json(out)
 
 
@@ -233,13 +256,7 @@ def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) 
     pools to that many threads: workers then do not oversubscribe the cores, and every executor
     sums in the same order, so deterministic stages give bit-identical results everywhere.
     """
-    if torch_threads is None:
-        return _execute(spec, store_root)
-    import torch
-    from threadpoolctl import threadpool_limits
-
-    torch.set_num_threads(torch_threads)
-    with threadpool_limits(limits=torch_threads):
+    with limit_threads(torch_threads, blas=True):
         return _execute(spec, store_root)
 
 
@@ -253,10 +270,31 @@ def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
                      inputs=[k for _, k in spec.inputs.values()],
                      seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
+        cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)
+        if spec.record is not None:
+            _write_record(spec, store, writer, time.time() - start, time.process_time() - cpu)
     return {"key": key, "status": "done", "seconds": time.time() - start}
 
 
-def jsonable_config(cfg: Mapping[str, Any]) -> dict[str, Any]:
-    """Round-trip through JSON so configs hash identically wherever they were built."""
-    return json.loads(json.dumps(cfg, sort_keys=True))
+def _write_record(spec: StageSpec, store: Store, w: Any, wall_s: float, cpu_s: float) -> None:
+    """The stage's self-describing result record (:mod:`repbench.records`), in its artifact."""
+    assert spec.record is not None
+    result = w.file("result.json")
+    values = json.loads(result.read_text()) if result.is_file() else {}
+    if spec.kind == ENCODER:
+        files = {stem: f"{stem}.png" for stem in ("reconstructions", "loss_curves")
+                 if w.file(f"{stem}.png").is_file()}
+        if files:
+            values["files"] = files
+    checksums = {}
+    for name, key in sorted(spec.record.get("data_stages", {}).items()):
+        if (art := store.get(DATASET, key, verify=False)) is not None:
+            checksums[name] = art.read_json().get("checksum")
+    if spec.kind == DATASET:
+        checksums[spec.record.get("data", {}).get("name", "dataset")] = values.get("checksum")
+    record = make_record(spec.record, values, data_checksums=checksums,
+                         stage={"kind": spec.kind, "key": spec.key, "label": spec.label,
+                                "inputs": sorted(k for _, k in spec.inputs.values())},
+                         timings={"wall_time_s": round(wall_s, 3), "cpu_time_s": round(cpu_s, 3)})
+    write_record(record, w.file(RECORD_FILE))

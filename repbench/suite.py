@@ -3,6 +3,20 @@
 A suite is a TOML file. ``smoke``, ``quick`` and ``paper`` ship inside the package
 (``repbench/suites/``); any other path is read as a user's suite file. Files are validated on
 load; an error names the file and the field.
+
+Every section and every size has a documented default (the ``quick`` suite's sizes), so a user's
+suite file needs only what differs::
+
+    tasks = ["PegInHole-v0"]
+    encoders = ["oracle", "my_encoder"]
+    metrics = ["ksg", "regression"]
+    [dataset]
+    random_episodes = 10      # everything else as in the defaults below
+
+Defaults: ``agents = ["sac"]``, ``seeds = [0, 1, 2]``; ``[dataset]`` 25 × 300 random steps,
+10 × 100 on-policy steps, seed 0; ``[encoder_training]`` latent_dim 16, 3 epochs, batch 64,
+seed 0; ``[rl]`` 6000 train steps, 10 evaluation episodes, 5 curve points, 20 000 steps for the
+full-state agent; ``[metric_settings]`` 100 bootstrap resamples, seed 0.
 """
 
 from __future__ import annotations
@@ -34,23 +48,32 @@ class _Strict(BaseModel):
 class DatasetConfig(_Strict):
     """Sizes of the encoder-training datasets."""
 
-    random_episodes: PositiveInt = Field(description="backwards-exploration episodes "
-                                                     "(one per hole position in the paper: 25)")
-    random_steps: PositiveInt = Field(description="steps per random episode (paper: 300)")
-    on_policy_episodes: int = Field(ge=0, description="episodes by the full-state agent")
-    on_policy_steps: PositiveInt = Field(description="steps per on-policy episode")
+    random_episodes: PositiveInt = Field(default=25, description="backwards-exploration "
+                                         "episodes (one per hole position in the paper: 25)")
+    random_steps: PositiveInt = Field(default=300, description="steps per random episode "
+                                                               "(paper: 300)")
+    on_policy_episodes: int = Field(default=10, ge=0,
+                                    description="episodes by the full-state agent")
+    on_policy_steps: PositiveInt = Field(default=100, description="steps per on-policy episode")
     seed: int = Field(default=0, description="collection seed")
+    heldout_episodes: int = Field(default=0, ge=0, description=(
+        "episodes of a separate backwards-exploration dataset the metrics are computed on "
+        "(with the on-policy data), never seen by the encoders; 0: metrics use the random "
+        "(training) and on-policy data"))
+    heldout_steps: PositiveInt | None = Field(default=None, description=(
+        "steps per held-out episode (default: random_steps)"))
+    heldout_seed: int = Field(default=1000, description="collection seed of the held-out data")
 
 
 class EncoderTrainingConfig(_Strict):
     """Shared encoder-training settings (per-encoder overrides in ``encoder_params``)."""
 
     latent_dim: PositiveInt = Field(default=16, description="latent size D (paper: 16)")
-    epochs: PositiveInt = Field(description="maximum training epochs over the random dataset "
-                                            "(early stopping may end training sooner)")
-    patience: int = Field(default=0, ge=0, description="stop after this many epochs without a "
+    epochs: PositiveInt = Field(default=10, description="maximum training epochs over the random "
+                                "dataset (early stopping may end training sooner)")
+    patience: int = Field(default=3, ge=0, description="stop after this many epochs without a "
                                                        "held-out improvement (0: train all epochs)")
-    validation_fraction: float = Field(default=0.0, ge=0.0, lt=1.0,
+    validation_fraction: float = Field(default=0.2, ge=0.0, lt=1.0,
                                        description="share of whole episodes held out for the "
                                                    "held-out loss curve and early stopping")
     batch_size: PositiveInt = Field(default=64, description="minibatch size")
@@ -66,13 +89,19 @@ class EncoderTrainingConfig(_Strict):
 class RLConfig(_Strict):
     """Downstream-RL budgets."""
 
-    train_steps: PositiveInt = Field(description="environment steps per training run "
-                                                 "(paper: 150k)")
-    eval_episodes: PositiveInt = Field(description="fixed evaluation episodes "
-                                                   "(paper: 20k steps)")
+    train_steps: PositiveInt = Field(default=10000, description="environment steps per training "
+                                                               "run (paper: 150k)")
+    eval_episodes: PositiveInt = Field(default=30, description="fixed evaluation episodes "
+                                                               "(paper: 20k steps)")
     curve_points: PositiveInt = Field(default=5, description="learning-curve evaluations")
-    full_state_train_steps: PositiveInt = Field(description="steps for the full-state SAC agent "
-                                                            "that collects the on-policy dataset")
+    full_state_train_steps: PositiveInt = Field(default=20000, description="steps for the "
+                                                "privileged SAC agent that collects the "
+                                                "on-policy dataset")
+    privileged_encoder: str = Field(default="oracle_task", description="what the privileged "
+                                    "agent observes beside the robot state")
+    privileged_params: dict[str, Any] = Field(
+        default_factory=dict, description="SAC parameters of the privileged agent, over "
+        "repbench.rl.full_state.PRIVILEGED_AGENT_PARAMS")
 
 
 class MetricsConfig(_Strict):
@@ -90,13 +119,16 @@ class Suite(_Strict):
     tasks: list[str] = Field(min_length=1)
     encoders: list[str] = Field(min_length=1)
     metrics: list[str] = Field(min_length=1)
-    agents: list[str] = Field(min_length=1)
-    seeds: list[int] = Field(min_length=1, description="RL seeds")
-    dataset: DatasetConfig
-    encoder_training: EncoderTrainingConfig
-    rl: RLConfig
+    agents: list[str] = Field(default=["sac"], min_length=1)
+    seeds: list[int] = Field(default=[0, 1, 2], min_length=1, description="RL seeds")
+    dataset: DatasetConfig = DatasetConfig()
+    encoder_training: EncoderTrainingConfig = EncoderTrainingConfig()
+    rl: RLConfig = RLConfig()
     metric_settings: MetricsConfig = MetricsConfig()
     task_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    heldout_task_params: dict[str, dict[str, Any]] = Field(default_factory=dict, description=(
+        "task parameters overriding task_params for the held-out dataset only (PegInHole-v0: "
+        "hole_sampling = 'uniform' puts its holes off the training grid)"))
     encoder_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     metric_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     agent_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
@@ -120,7 +152,8 @@ class Suite(_Strict):
                 if name not in reg:
                     raise ConfigError(f"suite {self.source or self.name}, field "
                                       f"{field_name!r}: {reg._unknown_message(name)}")
-        for field_name, kind in (("task_params", "tasks"), ("encoder_params", "encoders"),
+        for field_name, kind in (("task_params", "tasks"), ("heldout_task_params", "tasks"),
+                                 ("encoder_params", "encoders"),
                                  ("metric_params", "metrics"), ("agent_params", "agents")):
             listed = set(getattr(self, kind))
             for name in getattr(self, field_name):

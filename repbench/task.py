@@ -9,12 +9,12 @@ every ``reset`` and ``step``.
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
-from repbench.dataset import PROPRIO, Dataset
+from repbench.dataset import FT, IMAGE, PROPRIO, Dataset
 
 #: A data-collection policy: observation batch of one step (modality → array, with
 #: ``true_state`` added) → action.
@@ -23,6 +23,11 @@ Policy = Callable[[Mapping[str, np.ndarray]], np.ndarray]
 
 class Task(abc.ABC):
     """Base class of all tasks. The constructor stores hyperparameters only."""
+
+    #: Declared version of what this plugin computes. Part of every stage key and result record
+    #: in place of the source code: bump it when a change alters results; editing docstrings or
+    #: refactoring needs no bump. Older records then show as stale (:mod:`repbench.records`).
+    version: ClassVar[int] = 0
 
     #: Versioned id, as in gymnasium (``PegInHole-v0``).
     task_id: ClassVar[str]
@@ -44,6 +49,21 @@ class Task(abc.ABC):
     def robot_state(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
         """The robot-state part of an observation, appended to μ_z for the RL agent."""
         return np.asarray(observation[PROPRIO], dtype=np.float32)
+
+    def make_agent_env(self, seed: int | None = None, *,
+                       modalities: Sequence[str] = (IMAGE, FT, PROPRIO)) -> Any:
+        """The environment an RL agent trains in, given the modalities its encoder reads.
+
+        Tasks that can skip work for unread modalities (rendering when no encoder reads the
+        ``image``) override this; the default is :meth:`make_env`.
+        """
+        return self.make_env(seed=seed)
+
+    def evaluation_resets(self, n: int) -> list[dict[str, Any]]:
+        """Keyword arguments of ``env.reset`` for ``n`` fixed evaluation episodes (the same for
+        every encoder and agent). Default: reset seeds ``10_000 + i``; tasks override this to
+        cover their initial conditions systematically."""
+        return [{"seed": 10_000 + i} for i in range(n)]
 
     def task_state(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
         """The task-frame state of an observation batch (with ``true_state``), float32 [N, K].

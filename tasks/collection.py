@@ -96,8 +96,9 @@ def collect(env: PegInHoleEnv, kind: str, *, n_episodes: int, steps_per_episode:
             ) -> tuple[Dataset, dict[str, Any]]:
     """Roll out ``n_episodes`` x ``steps_per_episode`` steps; return the dataset and statistics.
 
-    ``random`` starts every episode inserted in the hole at grid position ``episode % G`` and
-    explores backwards; ``on_policy`` starts above a hole drawn by the episode's seed and calls
+    ``random`` starts every episode inserted in the hole at grid position ``episode % G`` (with
+    ``hole_sampling="uniform"``: at a hole drawn uniformly in the grid's square) and explores
+    backwards; ``on_policy`` starts above a hole drawn by the episode's seed and calls
     ``policy`` on one step's observation dict (no batch axis) with ``true_state`` added.
     ``explorer_params`` override :class:`BackwardsExplorer`'s keyword arguments (``random``).
     """
@@ -112,7 +113,10 @@ def collect(env: PegInHoleEnv, kind: str, *, n_episodes: int, steps_per_episode:
     for ep in range(n_episodes):
         ep_seed = int(seeds[ep])
         if kind == "random":
-            options = {"start": "inserted", "hole_index": ep % n_grid}
+            # grid: cycle through the grid positions; uniform: the environment draws the hole
+            # anywhere in the grid's square (held-out data off the training positions)
+            options = ({"start": "inserted", "hole_index": ep % n_grid}
+                       if env.config.hole_sampling == "grid" else {"start": "inserted"})
             explorer = BackwardsExplorer(np.random.default_rng(ep_seed),
                                          **dict(explorer_params or {}))
         else:

@@ -18,6 +18,8 @@ TABLE_HALF = 0.4
 MIN_CLEARANCE = 0.0005
 START_KINDS = ("above", "inserted")
 HOLE_SAMPLING = ("grid", "uniform")
+#: What the RL agent sees of the robot beside μ_z (:meth:`PegInHoleTask.robot_state`).
+ROBOT_VIEWS = ("proprio", "tip")
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,10 @@ class PegInHoleConfig:
     """Cut-off of the 2nd-order Butterworth low-pass on the wrist force/torque."""
     success_tolerance: float = 0.01
     """Inserted "to depth" means within this distance of the bottom (m)."""
+    robot_view: str = "tip"
+    """The robot state the RL agent observes beside μ_z: ``"tip"`` (default; the peg tip's
+    position and velocity, 6 numbers; chosen by measurement, see ``repbench/suites/quick.toml``)
+    or ``"proprio"`` (joint positions and velocities, tip position and velocity: 20 numbers)."""
 
     # -- derived -------------------------------------------------------------------------------
     @property
@@ -98,6 +104,8 @@ class PegInHoleConfig:
             raise bad("grid_center", "must be a planar (x, y) position")
         if self.hole_sampling not in HOLE_SAMPLING:
             raise bad("hole_sampling", f"must be one of {HOLE_SAMPLING}")
+        if self.robot_view not in ROBOT_VIEWS:
+            raise bad("robot_view", f"must be one of {ROBOT_VIEWS}")
         if self.start not in START_KINDS:
             raise bad("start", f"must be one of {START_KINDS}")
         for name in ("peg_half_width", "peg_length", "hole_depth", "wall_thickness",

@@ -7,13 +7,13 @@ also registers the gymnasium id ``repbench/PegInHole-v0``.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
-from repbench.dataset import PROPRIO, TRUE_STATE, Dataset, as_observation_batch
+from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset, as_observation_batch
 from repbench.errors import ConfigError, DataError
 from repbench.task import Policy, Task
 from repbench_tasks.config import TABLE_TOP_Z, PegInHoleConfig
@@ -26,6 +26,10 @@ TIP_VELOCITY = slice(17, 20)
 HOLE_XY = slice(14, 16)
 
 GYM_ID = "repbench/PegInHole-v0"
+#: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` (as in ``repbench.rl``).
+EVAL_SEED_BASE = 10_000
+#: Seed of the off-grid hole positions of the evaluation episodes.
+EVAL_HOLE_SEED = 31_337
 
 
 class PegInHoleTask(Task):
@@ -42,7 +46,7 @@ class PegInHoleTask(Task):
                  clearance: float = 0.002, image_size: int = 64, fast_render: bool = True,
                  camera: bool = True, start: str = "above", start_offset: float = 0.03,
                  action_scale: float = 0.02, physics_dt: float = 0.005,
-                 ft_cutoff_hz: float = 10.0) -> None:
+                 ft_cutoff_hz: float = 10.0, robot_view: str = "tip") -> None:
         self.horizon = horizon
         self.grid_size = grid_size
         self.grid_extent = grid_extent
@@ -57,6 +61,7 @@ class PegInHoleTask(Task):
         self.action_scale = action_scale
         self.physics_dt = physics_dt
         self.ft_cutoff_hz = ft_cutoff_hz
+        self.robot_view = robot_view
         self.config()  # validate now: a bad value fails at construction
 
     def config(self, **overrides: Any) -> PegInHoleConfig:
@@ -84,6 +89,47 @@ class PegInHoleTask(Task):
         if seed is not None:
             env.reset(seed=seed)
         return env
+
+    def make_agent_env(self, seed: int | None = None, *,
+                       modalities: Sequence[str] = (IMAGE, FT, PROPRIO)) -> gym.Env:
+        """The environment an agent trains in: physics only (no rendering, the ``image`` all
+        zeros) when ``modalities`` does not include ``image``."""
+        if IMAGE in modalities and not self.camera:
+            raise ConfigError("PegInHole-v0: camera=False but the encoder reads the wrist "
+                              "'image'; set camera = true in task_params or use an encoder "
+                              "without the image")
+        return self.make_env(seed=seed, camera=IMAGE in modalities)
+
+    def robot_state(self, observation: Mapping[str, np.ndarray]) -> np.ndarray:
+        """What the agent sees of the robot beside μ_z (``robot_view``): the peg tip's position
+        and velocity (6-D, the default) or the 20-D ``proprio``."""
+        proprio = np.asarray(observation[PROPRIO], dtype=np.float32)
+        if self.robot_view == "tip":
+            return np.concatenate([proprio[..., TIP_POSITION], proprio[..., TIP_VELOCITY]], -1)
+        return proprio
+
+    def evaluation_resets(self, n: int) -> list[dict[str, Any]]:
+        """``n`` fixed evaluation episodes: every grid position once (in order), then hole
+        positions off the grid (uniform in the grid's square, at least 1 cm from every grid
+        position), each with its own reset seed. The same for every encoder and agent."""
+        if not isinstance(n, (int, np.integer)) or n < 1:
+            raise ConfigError(f"PegInHole-v0: evaluation episodes n={n!r} must be a positive int")
+        cfg = self.config()
+        grid = cfg.grid_positions()
+        rng = np.random.default_rng(EVAL_HOLE_SEED)
+        resets: list[dict[str, Any]] = []
+        for i in range(n):
+            seed = EVAL_SEED_BASE + i
+            if i < len(grid):
+                resets.append({"seed": seed, "options": {"hole_index": i}})
+                continue
+            while True:
+                xy = np.asarray(cfg.grid_center) + rng.uniform(-cfg.grid_extent / 2,
+                                                               cfg.grid_extent / 2, 2)
+                if len(grid) == 1 or np.min(np.linalg.norm(grid - xy, axis=1)) >= 0.01:
+                    break
+            resets.append({"seed": seed, "options": {"hole_xy": [float(v) for v in xy]}})
+        return resets
 
     def true_state(self, env: Any) -> np.ndarray:
         """z° of ``env`` now: arm joint positions and velocities, hole planar position."""

@@ -14,12 +14,14 @@ from collections.abc import Callable
 import numpy as np
 from scipy import stats
 
+from repbench.devices import resolve_device
 from repbench.errors import DataError
 
 __all__ = [
     "constant_columns",
     "drop_constant",
     "episode_bootstrap",
+    "episode_bootstrap_replicates",
     "episode_rows",
     "resolve_device",
     "seed_from",
@@ -81,8 +83,21 @@ def episode_bootstrap(statistic: Callable[[np.ndarray], float], episode: np.ndar
     episodes the rows themselves are resampled (the interval is then optimistic). Returns
     ``(None, None)`` when ``n_bootstrap`` is 0. Uses :func:`scipy.stats.bootstrap`.
     """
+    lo, hi, _ = episode_bootstrap_replicates(statistic, episode, rng, n_bootstrap, confidence)
+    return lo, hi
+
+
+def episode_bootstrap_replicates(statistic: Callable[[np.ndarray], float], episode: np.ndarray,
+                                 rng: np.random.Generator, n_bootstrap: int = 100,
+                                 confidence: float = 0.95
+                                 ) -> tuple[float | None, float | None, list[float]]:
+    """:func:`episode_bootstrap` plus the bootstrap replicates themselves (a list of floats).
+
+    Metrics store the replicates in ``extras["bootstrap_replicates"]`` so that the correlation
+    analysis can carry each encoder's metric estimation noise (:mod:`repbench.correlation`).
+    """
     if n_bootstrap <= 0:
-        return None, None
+        return None, None, []
     ids, rows = episode_rows(episode)
     if ids.size < 2:
         rows = [np.array([i]) for i in range(len(episode))]
@@ -94,24 +109,17 @@ def episode_bootstrap(statistic: Callable[[np.ndarray], float], episode: np.ndar
         (np.arange(len(rows)),), stat, n_resamples=int(n_bootstrap), vectorized=False,
         method="percentile", confidence_level=confidence, random_state=rng,
     )
+    reps = [float(v) for v in np.asarray(res.bootstrap_distribution).ravel()
+            if np.isfinite(v)]
     lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
     if not (np.isfinite(lo) and np.isfinite(hi)):
-        return None, None
-    return lo, hi
+        return None, None, reps
+    return lo, hi, reps
 
 
 def seed_from(rng: np.random.Generator) -> int:
     """A 31-bit integer seed drawn from ``rng`` (for torch / scikit-learn)."""
     return int(rng.integers(0, 2**31 - 1))
-
-
-def resolve_device(device: str) -> str:
-    """``"auto"`` → ``"cuda"`` when available, else ``"cpu"``."""
-    if device != "auto":
-        return device
-    import torch
-
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def check_params(name: str, **checks: tuple[bool, str]) -> None:

@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 
 from repbench.errors import DataError
 from repbench.metric import MetricResult, metric
-from repbench.metrics._common import check_params, drop_constant, episode_bootstrap
+from repbench.metrics._common import check_params, drop_constant, episode_bootstrap_replicates
 
 __all__ = ["coherence", "knn_mse_terms"]
 
@@ -33,14 +33,18 @@ def knn_mse_terms(z: np.ndarray, z_true: np.ndarray, k: int = 5) -> np.ndarray:
     return ((z_true[nb] - z_true[:, None, :]) ** 2).sum(-1).mean(1)
 
 
-@metric("coherence", higher_is_better=False,
+@metric("coherence", higher_is_better=False, version=1,  # v1: standardized z by default
         description="KNN-MSE (Raffin 2018): mean squared z° distance to the k=5 nearest in z")
 def coherence(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
-              *, k: int = 5, standardize_true: bool = True, n_bootstrap: int = 100
-              ) -> MetricResult:
+              *, k: int = 5, standardize_true: bool = True, standardize_z: bool = True,
+              n_bootstrap: int = 100) -> MetricResult:
     """KNN-MSE: mean over samples of ‖z°_i − z°_j‖² over i's ``k`` nearest neighbours in z.
 
-    Lower is better. z is used as given (its own geometry, the one a policy sees). With
+    Lower is better. With ``standardize_z`` (default) each non-constant column of z is
+    standardized first: the RL agents standardize their input per dimension with fixed
+    statistics (``repbench.rl.normalization``), so that is the geometry a policy sees; it also
+    stops one large-scale latent dimension from deciding every neighbourhood. ``False`` uses z
+    as given (Raffin et al.'s KNN-MSE on the raw latent). With
     ``standardize_true`` (default) each true-state dimension is standardized first, so that
     positions and velocities count equally; an uninformative z then scores about 2·S (S the
     number of non-constant true-state dims: 2 tr Cov for random neighbours). Constant z
@@ -59,10 +63,15 @@ def coherence(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ra
     n = len(zt)
     random_value = float(2 * zt.var(axis=0).sum() * n / (n - 1))
     extras = {"k": int(k), "dropped_constant_dims": dropped, "random_neighbours_value":
-              random_value, "standardize_true": bool(standardize_true)}
+              random_value, "standardize_true": bool(standardize_true),
+              "standardize_z": bool(standardize_z)}
     if zv.shape[1] == 0:
         return MetricResult(random_value, False, random_value, random_value,
                             extras={**extras, "note": "z is constant: random-neighbour value"})
+    if standardize_z:
+        zv = (zv - zv.mean(0)) / zv.std(0)
     terms = knn_mse_terms(zv, zt, int(k))
-    lo, hi = episode_bootstrap(lambda r: terms[r].mean(), episode, rng, n_bootstrap)
-    return MetricResult(float(terms.mean()), False, lo, hi, extras=extras)
+    lo, hi, reps = episode_bootstrap_replicates(lambda r: terms[r].mean(), episode, rng,
+                                                n_bootstrap)
+    return MetricResult(float(terms.mean()), False, lo, hi,
+                        extras={**extras, "bootstrap_replicates": reps})

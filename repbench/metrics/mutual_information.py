@@ -33,12 +33,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.special import digamma
 
+from repbench.devices import torch_threads
 from repbench.errors import DataError
 from repbench.metric import MetricResult, metric
 from repbench.metrics._common import (
     check_params,
     drop_constant,
-    episode_bootstrap,
+    episode_bootstrap_replicates,
     resolve_device,
     seed_from,
     standardize,
@@ -190,8 +191,10 @@ def _ksg_result(x: np.ndarray, y: np.ndarray, episode: np.ndarray, rng: np.rando
                 k: int, n_bootstrap: int, extras: dict[str, Any]) -> MetricResult:
     terms = ksg_terms(x, y, k, rng=rng)
     value = float(terms.mean())
-    lo, hi = episode_bootstrap(lambda rows: terms[rows].mean(), episode, rng, n_bootstrap)
-    return MetricResult(value, True, lo, hi, extras={**extras, "k": k, "n_samples": len(x)})
+    lo, hi, reps = episode_bootstrap_replicates(lambda rows: terms[rows].mean(), episode, rng,
+                                                n_bootstrap)
+    return MetricResult(value, True, lo, hi, extras={**extras, "k": k, "n_samples": len(x),
+                                                     "bootstrap_replicates": reps})
 
 
 # -- metrics -------------------------------------------------------------------------------------
@@ -275,19 +278,13 @@ def mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.
     too small to gain from more, and extra threads slow it down on a busy machine); the
     previous setting is restored afterwards. ``None`` leaves torch's setting alone.
     """
-    import torch
-
-    previous = torch.get_num_threads()
-    if num_threads is not None and resolve_device(device) == "cpu":
-        torch.set_num_threads(int(num_threads))
-    try:
+    threads = num_threads if resolve_device(device) == "cpu" else None
+    with torch_threads(threads):
         return _mine(z, z_true, episode, rng, hidden=hidden, learning_rate=learning_rate,
                      batch_size=batch_size, ema_decay=ema_decay, steps=steps,
                      test_fraction=test_fraction, eval_every=eval_every,
                      average_last=average_last, n_marginal=n_marginal, device=device,
                      progress=progress, n_bootstrap=n_bootstrap)
-    finally:
-        torch.set_num_threads(previous)
 
 
 def _mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator, *,
@@ -384,13 +381,14 @@ def _mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random
     last = [v for _, v in curve[-int(average_last):]]
     value = float(np.mean(last))
     t_joint, lme = held_out_terms()
-    lo, hi = episode_bootstrap(lambda rows: dv(t_joint[rows], lme[rows]), episode[test], rng,
-                               n_bootstrap)
-    if lo is not None and hi is not None:  # interval for the averaged value, same width
-        shift = value - dv(t_joint, lme)
+    lo, hi, reps = episode_bootstrap_replicates(lambda rows: dv(t_joint[rows], lme[rows]),
+                                                episode[test], rng, n_bootstrap)
+    shift = value - dv(t_joint, lme)  # interval for the averaged value, same width
+    reps = [r + shift for r in reps]
+    if lo is not None and hi is not None:
         lo, hi = lo + shift, hi + shift
     extras = {**notes, "steps": int(steps), "eval_every": int(eval_every),
               "average_last": len(last), "held_out_curve": curve,
               "train_bound_ema": train_bound, "n_train": int(n_tr), "n_test": int(n_te),
-              "split": "whole episodes held out"}
+              "split": "whole episodes held out", "bootstrap_replicates": reps}
     return MetricResult(value, True, lo, hi, extras=extras)

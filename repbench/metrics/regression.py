@@ -15,7 +15,12 @@ import numpy as np
 
 from repbench.errors import DataError
 from repbench.metric import MetricResult, metric
-from repbench.metrics._common import check_params, drop_constant, episode_bootstrap, seed_from
+from repbench.metrics._common import (
+    check_params,
+    drop_constant,
+    episode_bootstrap_replicates,
+    seed_from,
+)
 
 __all__ = ["regression"]
 
@@ -79,8 +84,9 @@ def regression(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
     sq_dev = ys[test] ** 2  # deviation from the training mean (0 after standardization)
     sse_row, sst_row = sq_err.sum(1), sq_dev.sum(1)
     value = float(sse_row.sum() / max(sst_row.sum(), 1e-300))
-    lo, hi = episode_bootstrap(lambda r: sse_row[r].sum() / max(sst_row[r].sum(), 1e-300),
-                               episode[test], rng, n_bootstrap)
+    lo, hi, reps = episode_bootstrap_replicates(
+        lambda r: sse_row[r].sum() / max(sst_row[r].sum(), 1e-300), episode[test], rng,
+        n_bootstrap)
     r2: list[float | None] = [None] * z_true.shape[1]
     yt = ys[test]
     sst_d = ((yt - yt.mean(0)) ** 2).sum(0)
@@ -92,6 +98,7 @@ def regression(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
         "constant_true_dims": np.flatnonzero(const_true).tolist(),
         "n_train": int(train.size), "n_test": int(test.size),
         "split": "whole episodes held out", "hidden": list(hidden), "max_iter": int(max_iter),
+        "bootstrap_replicates": reps,
     }
     if random_split:
         perm = rng.permutation(len(z))

@@ -28,7 +28,7 @@ import numpy as np
 from repbench.dataset import successor_index
 from repbench.errors import DataError
 from repbench.metric import MetricResult, metric
-from repbench.metrics._common import check_params, drop_constant, episode_bootstrap
+from repbench.metrics._common import check_params, drop_constant, episode_bootstrap_replicates
 from repbench.metrics.mutual_information import knn_entropy_terms
 
 __all__ = ["jacobian_bound", "latent_distance_curve", "smoothness", "smoothness_objective"]
@@ -59,7 +59,7 @@ def latent_distance_curve(z: np.ndarray, episode: np.ndarray,
     return out
 
 
-@metric("smoothness", higher_is_better=False,
+@metric("smoothness", higher_is_better=False, rows="on_policy",
         description="Mean of ‖z_n − z_n+1‖ / ‖z°_n − z°_n+1‖ within episodes, scale-normalized")
 def smoothness(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
                *, normalize: bool = True, offsets: tuple[int, ...] = DEFAULT_OFFSETS,
@@ -94,7 +94,8 @@ def smoothness(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
     ratio = raw * (szt / sz) if normalize else raw
     pair_ep = episode[i[moving]]
     value = float(ratio.mean())
-    lo, hi = episode_bootstrap(lambda r: ratio[r].mean(), pair_ep, rng, n_bootstrap)
+    lo, hi, reps = episode_bootstrap_replicates(lambda r: ratio[r].mean(), pair_ep, rng,
+                                                n_bootstrap)
     top = float(np.quantile(ratio, 0.995))
     counts, edges = np.histogram(ratio, bins=int(bins), range=(0.0, top if top > 0 else 1.0))
     curve = latent_distance_curve(z, episode, offsets)
@@ -107,6 +108,7 @@ def smoothness(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
         "scale_z": sz, "scale_z_true": szt,
         "quantiles": {str(q): float(np.quantile(ratio, q)) for q in (0.05, 0.25, 0.5, 0.75, 0.95)},
         "n_pairs": int(moving.sum()), "n_static_pairs": int((~moving).sum()),
+        "bootstrap_replicates": reps,
     }
     return MetricResult(value, False, lo, hi, extras=extras)
 
@@ -130,7 +132,7 @@ def jacobian_bound(mean_sq_step: float, dim: int, alpha: float) -> float:
     return 0.5 * dim * (math.log(mean_sq_step) - math.log(alpha * dim))
 
 
-@metric("smoothness_objective", higher_is_better=True,
+@metric("smoothness_objective", higher_is_better=True, rows="on_policy",
         description="H(z) − E ln|J_g| with the paper's bound on ln|J_g| (kNN entropy, k=5)")
 def smoothness_objective(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
                          rng: np.random.Generator, *, k: int = 5,
@@ -182,12 +184,12 @@ def smoothness_objective(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
     entropy = float(h_terms.mean())
     mean_sq = float(np.nanmean(step_sq))
     bound = jacobian_bound(mean_sq, dim, alpha_used)
-    lo, hi = episode_bootstrap(objective, episode, rng, n_bootstrap)
+    lo, hi, reps = episode_bootstrap_replicates(objective, episode, rng, n_bootstrap)
     extras = {
         "entropy": entropy, "log_jacobian_bound": bound, "alpha": alpha_used,
         "alpha_mode": alpha if isinstance(alpha, str) else "fixed",
         "alpha_per_dim": alpha_d.tolist(), "static_true_dims": np.flatnonzero(static).tolist(),
         "mean_sq_latent_step": mean_sq, "latent_dim_used": dim,
-        "dropped_constant_dims": dropped, "k": int(k),
+        "dropped_constant_dims": dropped, "k": int(k), "bootstrap_replicates": reps,
     }
     return MetricResult(entropy - bound, True, lo, hi, extras=extras)

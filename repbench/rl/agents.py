@@ -18,15 +18,16 @@ A training run reads top to bottom in :meth:`SB3Agent.train_model`:
 
 from __future__ import annotations
 
+import copy
 import math
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from repbench.agent import Agent, AgentResult
+from repbench.devices import resolve_device, torch_threads
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, TrainingDivergedError
 from repbench.rl.wrappers import (
@@ -50,40 +51,32 @@ def eval_seeds(n: int) -> list[int]:
     return [EVAL_SEED_BASE + i for i in range(n)]
 
 
-def resolve_device(device: str) -> str:
-    """``"auto"`` → ``"cuda"`` if torch sees a GPU, else ``"cpu"``; anything else unchanged."""
-    if device == "auto":
-        import torch
-
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    return device
-
-
-@contextmanager
-def torch_threads(n: int | None) -> Iterator[None]:
-    """Set torch's intra-op thread count inside the block and restore it afterwards."""
-    if n is None:
-        yield
-        return
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
+def evaluation_resets(task: Task, n: int) -> list[dict[str, Any]]:
+    """The ``env.reset`` keyword arguments of the task's ``n`` fixed evaluation episodes
+    (:meth:`repbench.Task.evaluation_resets`; every grid hole and off-grid holes for the
+    peg-in-hole), the same for every encoder and agent."""
+    resets = getattr(task, "evaluation_resets", None)
+    return list(resets(n)) if callable(resets) else [{"seed": s} for s in eval_seeds(n)]
 
 
-def evaluate(model: Any, env: Any, seeds: Sequence[int], *, deterministic: bool = True
-             ) -> tuple[list[float], list[bool]]:
-    """Run one episode per reset seed; return per-episode returns and successes.
+def spread(items: Sequence[Any], k: int) -> list[Any]:
+    """``k`` items spread evenly over ``items`` (all of them when ``k >= len(items)``)."""
+    if k >= len(items):
+        return list(items)
+    return [items[int(i)] for i in np.linspace(0, len(items) - 1, k).round()]
+
+
+def evaluate(model: Any, env: Any, resets: Sequence[int | Mapping[str, Any]], *,
+             deterministic: bool = True) -> tuple[list[float], list[bool]]:
+    """Run one episode per reset (a seed, or ``env.reset`` keyword arguments); return
+    per-episode returns and successes.
 
     An episode counts as a success if ``info["is_success"]`` was true at any step.
     """
     returns, successes = [], []
-    for s in seeds:
-        obs, info = env.reset(seed=int(s))
+    for reset in resets:
+        kwargs = dict(reset) if isinstance(reset, Mapping) else {"seed": int(reset)}
+        obs, info = env.reset(**kwargs)
         total, success, done = 0.0, bool(info.get("is_success", False)), False
         while not done:
             action, _ = model.predict(obs, deterministic=deterministic)
@@ -97,18 +90,23 @@ def evaluate(model: Any, env: Any, seeds: Sequence[int], *, deterministic: bool 
 
 
 def _make_curve_callback(agent_name: str, encoder_name: str, eval_env: Any,
-                         seeds: list[int], points: list[int], total: int, progress: bool) -> Any:
+                         resets: list[dict[str, Any]], points: list[int], total: int,
+                         progress: bool, keep_best: bool) -> Any:
     from stable_baselines3.common.callbacks import BaseCallback
     from tqdm.auto import tqdm
 
     class CurveCallback(BaseCallback):
-        """Samples the learning curve at ``points`` (env steps) on fixed episodes."""
+        """Samples the learning curve at ``points`` (env steps) on fixed episodes; with
+        ``keep_best``, keeps a copy of the policy at the best point (success, then return)."""
 
         def __init__(self) -> None:
             super().__init__()
             self.steps: list[int] = []
             self.returns: list[float] = []
             self.success: list[float] = []
+            self.best: tuple[float, float] | None = None
+            self.best_step: int | None = None
+            self.best_state: dict[str, Any] | None = None
             self._next = 0
             self._bar: Any = None
 
@@ -120,10 +118,14 @@ def _make_curve_callback(agent_name: str, encoder_name: str, eval_env: Any,
             self._bar.update(self.training_env.num_envs)
             while self._next < len(points) and self.num_timesteps >= points[self._next]:
                 self._check_finite()
-                rets, succ = evaluate(self.model, eval_env, seeds)
+                rets, succ = evaluate(self.model, eval_env, resets)
                 self.steps.append(int(self.num_timesteps))
                 self.returns.append(float(np.mean(rets)))
                 self.success.append(float(np.mean(succ)))
+                score = (self.success[-1], self.returns[-1])
+                if keep_best and (self.best is None or score > self.best):
+                    self.best, self.best_step = score, int(self.num_timesteps)
+                    self.best_state = copy.deepcopy(self.model.policy.state_dict())
                 self._bar.set_postfix(ret=f"{self.returns[-1]:.2f}",
                                       succ=f"{self.success[-1]:.2f}")
                 self._next += 1
@@ -155,7 +157,8 @@ class SB3Agent(Agent):
                  buffer_size: int = 3_000_000, batch_size: int = 256, tau: float = 0.005,
                  learning_starts: int = 1000, gamma: float = 0.99, gradient_steps: int = -1,
                  curve_episodes: int = 5, normalize_steps: int = 500, device: str = "auto",
-                 n_envs: int = 1, torch_threads: int | None = 1, progress: bool = True) -> None:
+                 n_envs: int = 1, torch_threads: int | None = 1, keep_best: bool = False,
+                 progress: bool = True) -> None:
         self.hidden_sizes = hidden_sizes
         self.learning_rate = learning_rate
         self.buffer_size = buffer_size
@@ -169,6 +172,7 @@ class SB3Agent(Agent):
         self.device = device
         self.n_envs = n_envs
         self.torch_threads = torch_threads
+        self.keep_best = keep_best
         self.progress = progress
 
     # -- parameters ----------------------------------------------------------------------------
@@ -230,7 +234,8 @@ class SB3Agent(Agent):
             return DummyVecEnv([lambda: make_encoded_env(task, encoder, seed=seed)])
 
         def factory(rank: int) -> Any:
-            return lambda: make_raw_env(task, seed=seed + rank)
+            return lambda: make_raw_env(task, seed=seed + rank,
+                                        modalities=encoder.required_modalities)
 
         venv = SubprocVecEnv([factory(i) for i in range(self.n_envs)])
         return batch_encoded_vec_env(venv, task, encoder)
@@ -328,18 +333,21 @@ class SB3Agent(Agent):
                                            NORMALIZE_SEED_BASE + 1000 * seed)
             model = self.build_model(env, seed, buffer_size=buffer, feature_stats=stats)
             # 3. learn, sampling the learning curve
-            n_curve = min(self.curve_episodes, eval_episodes)
+            resets = evaluation_resets(task, eval_episodes)
+            curve_resets = spread(resets, self.curve_episodes)
             points = sorted({max(1, math.ceil(train_steps * (k + 1) / curve_points))
                              for k in range(curve_points)})
-            callback = _make_curve_callback(self.name, enc_name, eval_env, eval_seeds(n_curve),
-                                            points, train_steps, progress)
+            callback = _make_curve_callback(self.name, enc_name, eval_env, curve_resets,
+                                            points, train_steps, progress, self.keep_best)
             t0 = time.perf_counter()
             model.learn(total_timesteps=train_steps, callback=callback, progress_bar=False)
             train_time = time.perf_counter() - t0
         finally:
             env.close()
+        if self.keep_best and callback.best_state is not None:
+            model.policy.load_state_dict(callback.best_state)
         # 4. final evaluation on the fixed episodes
-        rets, succ = evaluate(model, eval_env, eval_seeds(eval_episodes))
+        rets, succ = evaluate(model, eval_env, resets)
         eval_env.close()
         if not np.isfinite(rets).all():
             raise TrainingDivergedError(f"{self.name} on encoder {enc_name}: evaluation "
@@ -365,9 +373,10 @@ class SB3Agent(Agent):
                 "device": str(model.device),
                 "observation_dim": expected,
                 "latent_dim": int(encoder.latent_dim),
-                "eval_seeds": eval_seeds(eval_episodes),
+                "eval_resets": resets,
                 "eval_episode_success": [bool(s) for s in succ],
-                "curve_episodes": n_curve,
+                "curve_episodes": len(curve_resets),
+                "kept_step": callback.best_step if self.keep_best else None,
                 "train_time_s": float(train_time),
                 "torch_threads": torch.get_num_threads(),
             },
@@ -397,6 +406,8 @@ class SACAgent(SB3Agent):
         torch_threads: torch intra-op threads while training (restored afterwards); 1 is
             fastest for these small MLPs on CPU (parallelise over seeds instead); ``None``
             leaves torch's setting alone.
+        keep_best: end with the policy of the best learning-curve point (evaluation success,
+            then return) instead of the last one (the privileged agent does).
         progress: show a progress bar.
     """
 
@@ -408,13 +419,14 @@ class SACAgent(SB3Agent):
                  ent_coef: str | float = "auto", learning_starts: int = 1000,
                  gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
                  normalize_steps: int = 500, device: str = "auto", n_envs: int = 1,
-                 torch_threads: int | None = 1, progress: bool = True) -> None:
+                 torch_threads: int | None = 1, keep_best: bool = False,
+                 progress: bool = True) -> None:
         super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
                          buffer_size=buffer_size, batch_size=batch_size, tau=tau,
                          learning_starts=learning_starts, gamma=gamma,
                          gradient_steps=gradient_steps, curve_episodes=curve_episodes,
                          normalize_steps=normalize_steps, device=device, n_envs=n_envs,
-                         torch_threads=torch_threads, progress=progress)
+                         torch_threads=torch_threads, keep_best=keep_best, progress=progress)
         self.ent_coef = ent_coef
 
     def validate(self, train_steps: int) -> None:
@@ -446,13 +458,14 @@ class DDPGAgent(SB3Agent):
                  action_noise: float = 0.25, learning_starts: int = 1000,
                  gamma: float = 0.99, gradient_steps: int = -1, curve_episodes: int = 5,
                  normalize_steps: int = 500, device: str = "auto", n_envs: int = 1,
-                 torch_threads: int | None = 1, progress: bool = True) -> None:
+                 torch_threads: int | None = 1, keep_best: bool = False,
+                 progress: bool = True) -> None:
         super().__init__(hidden_sizes=hidden_sizes, learning_rate=learning_rate,
                          buffer_size=buffer_size, batch_size=batch_size, tau=tau,
                          learning_starts=learning_starts, gamma=gamma,
                          gradient_steps=gradient_steps, curve_episodes=curve_episodes,
                          normalize_steps=normalize_steps, device=device, n_envs=n_envs,
-                         torch_threads=torch_threads, progress=progress)
+                         torch_threads=torch_threads, keep_best=keep_best, progress=progress)
         self.action_noise = action_noise
 
     def validate(self, train_steps: int) -> None:

@@ -164,16 +164,25 @@ class FrozenEncoderObservation(gym.Wrapper):
 
 def make_encoded_env(task: Task, encoder: Encoder, seed: int | None = None,
                      expected_dim: int | None = None) -> gym.Env:
-    """``task.make_env(seed)`` observed through ``encoder``; truncated at ``task.horizon``.
+    """``task.make_agent_env(seed)`` observed through ``encoder``; truncated at
+    ``task.horizon``. The environment skips rendering when the encoder does not read the
+    image (:meth:`repbench.Task.make_agent_env`).
 
     Also wrapped in ``gymnasium.wrappers.TimeLimit`` when the task has a ``horizon``
     (harmless when the environment already truncates there itself).
     """
-    env = task.make_env(seed=seed)
+    env = agent_env(task, encoder.required_modalities, seed)
+    return FrozenEncoderObservation(env, task, encoder, expected_dim)
+
+
+def agent_env(task: Task, modalities: Any, seed: int | None = None) -> gym.Env:
+    """``task.make_agent_env`` for an encoder reading ``modalities`` (no rendering when it
+    does not read the image), truncated at ``task.horizon``."""
+    env = task.make_agent_env(seed=seed, modalities=tuple(modalities))
     horizon = getattr(task, "horizon", None)
     if horizon:
         env = gym.wrappers.TimeLimit(env, max_episode_steps=int(horizon))
-    return FrozenEncoderObservation(env, task, encoder, expected_dim)
+    return env
 
 
 class TrueStateInObservation(gym.Wrapper):
@@ -202,14 +211,11 @@ class TrueStateInObservation(gym.Wrapper):
         return self._add(obs, info), reward, terminated, truncated, info
 
 
-def make_raw_env(task: Task, seed: int | None = None) -> gym.Env:
-    """``task.make_env(seed)`` truncated at ``task.horizon``, with ``true_state`` in the
-    observation dict (the per-process part of a vectorised, batch-encoded environment)."""
-    env = task.make_env(seed=seed)
-    horizon = getattr(task, "horizon", None)
-    if horizon:
-        env = gym.wrappers.TimeLimit(env, max_episode_steps=int(horizon))
-    return TrueStateInObservation(env)
+def make_raw_env(task: Task, seed: int | None = None,
+                 modalities: Any = ("image", "ft", "proprio")) -> gym.Env:
+    """:func:`agent_env` with ``true_state`` in the observation dict (the per-process part of
+    a vectorised, batch-encoded environment)."""
+    return TrueStateInObservation(agent_env(task, modalities, seed))
 
 
 def batch_encoded_vec_env(venv: Any, task: Task, encoder: Encoder) -> Any:

@@ -10,36 +10,13 @@ from __future__ import annotations
 import inspect
 import json
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from repbench.agent import Agent, AgentResult
-from repbench.dataset import TRUE_STATE, Dataset
-from repbench.encoder import Encoder
+from repbench.encoder import Encoder, TrueStateEncoder
 from repbench.task import Task
-
-
-class _TrueStateEncoder(Encoder):
-    """z = z° (used when no encoder is given, so the check needs no encoder plugin)."""
-
-    required_modalities = (TRUE_STATE,)
-
-    def __init__(self) -> None:
-        pass
-
-    def fit(self, dataset: Dataset) -> _TrueStateEncoder:
-        self.state_dim_ = int(dataset.true_state.shape[1])
-        return self
-
-    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
-        return self.check_observations(observations)[TRUE_STATE].astype(np.float32)
-
-    @property
-    def latent_dim(self) -> int:
-        return self.state_dim_
-
 
 #: Defaults that make SB3-style agents learn within the tiny budget (applied only to the
 #: constructor arguments the agent actually has, and only when not given).
@@ -119,7 +96,7 @@ def check_agent(agent_or_name: Any, task: Task | None = None, encoder: Encoder |
     if encoder is None:
         data = task.collect("random", n_episodes=1, steps_per_episode=5, seed=seed,
                             progress=False)
-        encoder = _TrueStateEncoder().fit(data)
+        encoder = TrueStateEncoder().fit(data)
     budget = {"train_steps": train_steps, "seed": seed, "eval_episodes": eval_episodes,
               "curve_points": curve_points, "progress": False}
     first = agent.train(task, encoder, **budget)

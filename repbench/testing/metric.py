@@ -16,7 +16,7 @@ import numpy as np
 from repbench.errors import DataError
 from repbench.metric import Metric, MetricResult
 
-__all__ = ["check_metric", "synthetic_true_state"]
+__all__ = ["check_metric", "synthetic_extra_inputs", "synthetic_true_state"]
 
 
 def synthetic_true_state(n_episodes: int = 10, steps: int = 60, dynamic_dims: int = 6,
@@ -35,6 +35,25 @@ def synthetic_true_state(n_episodes: int = 10, steps: int = 60, dynamic_dims: in
     hole = np.repeat(rng.uniform(-1, 1, (n_episodes, static_dims)), steps, axis=0)
     z_true = np.hstack([np.concatenate(walks), hole])
     return (z_true - z_true.mean(0)) / z_true.std(0), episode
+
+
+def synthetic_extra_inputs(z_true: np.ndarray, episode: np.ndarray, static_dims: int = 2,
+                           seed: int = 0) -> dict[str, np.ndarray]:
+    """Extra metric inputs consistent with :func:`synthetic_true_state`'s ``z_true``.
+
+    ``robot_state``: the random-walk (dynamic) dimensions; ``task_state``: the first
+    ``static_dims`` dynamic dimensions minus the static "hole" dimensions, then the next
+    ``static_dims`` dynamic dimensions (a velocity-like part the robot state determines);
+    ``action``: a clipped pull towards the hole plus noise; ``source``: all zeros.
+    """
+    rng = np.random.default_rng(seed)
+    robot = z_true[:, :-static_dims]
+    hole = z_true[:, -static_dims:]
+    offset = robot[:, :static_dims] - hole
+    task = np.hstack([offset, robot[:, static_dims:2 * static_dims]])
+    action = np.clip(-offset + 0.1 * rng.standard_normal(offset.shape), -1.0, 1.0)
+    return {"robot_state": robot, "task_state": task, "action": action,
+            "source": np.zeros(len(z_true), dtype=np.int64)}
 
 
 def _expect_data_error(m: Metric, what: str, *args: Any, **params: Any) -> None:
@@ -60,8 +79,10 @@ def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, episode_
     brackets the value (``ci_low <= value <= ci_high``); NaN, misaligned rows, a 1-D ``z``
     and too few samples raise :class:`DataError` with a one-line message; the true state as
     ``z`` scores better than a random map (independent noise), respecting the direction.
-    ``params`` are passed to the metric (e.g. ``steps=300`` for a slow estimator). Returns the
-    true-state result.
+    ``params`` are passed to the metric (e.g. ``steps=300`` for a slow estimator); a metric
+    that asks for extra arrays (``robot_state``, ``task_state``, ``action``, ``source``) gets
+    the synthetic ones of :func:`synthetic_extra_inputs` unless ``params`` gives them. Returns
+    the true-state result.
     """
     if isinstance(metric_or_name, str):
         from repbench.registry import metrics
@@ -72,6 +93,9 @@ def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, episode_
     assert isinstance(m, Metric), f"{m!r} is not a repbench.Metric; decorate it with @metric"
     params.setdefault("n_bootstrap", 20)
     z_true, episode = synthetic_true_state(n_episodes, episode_steps, seed=seed)
+    extra = synthetic_extra_inputs(z_true, episode, seed=seed)
+    for key in m.extra_inputs:  # the arrays the metric asks for (repbench.metric.EXTRA_INPUTS)
+        params.setdefault(key, extra[key])
     rng = np.random.default_rng(seed + 1)
     z_random = rng.standard_normal(z_true.shape)
 

@@ -94,7 +94,8 @@ def synthetic_dataset(n_episodes: int = 4, steps: int = 30, seed: int = 0,
         success=success,
         episode=episode,
         step=step,
-        metadata={"task": "synthetic", "seed": seed, "n_episodes": n_episodes,
+        # z° is laid out as ToyReach-v0's, so task-frame encoders and metrics can read it
+        metadata={"task": "ToyReach-v0", "synthetic": True, "seed": seed, "n_episodes": n_episodes,
                   "steps": steps, "image_size": image_size},
     )
 

@@ -11,14 +11,23 @@ second, so tests of encoders, metrics and agents can use it instead of the MuJoC
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from repbench.dataset import FT, IMAGE, LAST_ACTION, PROPRIO, TRUE_STATE, Dataset
-from repbench.errors import ConfigError
+from repbench.dataset import (
+    FT,
+    IMAGE,
+    LAST_ACTION,
+    PROPRIO,
+    TRUE_STATE,
+    Dataset,
+    as_observation_batch,
+)
+from repbench.errors import ConfigError, DataError
 from repbench.task import Policy, Task
 
 _HOLE_COLOUR = np.array([40, 90, 230], np.uint8)
@@ -153,6 +162,14 @@ class ToyReachTask(Task):
     def true_state(self, env: Any) -> np.ndarray:
         """z° = [position (2), velocity (2), hole position (2)]."""
         return env.unwrapped.true_state()
+
+    def task_state(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Position minus hole (2) and velocity (2), float32 [N, 4], from z°."""
+        z = np.asarray(as_observation_batch(observations, (TRUE_STATE,), self.task_id)[TRUE_STATE])
+        if z.ndim != 2 or z.shape[1] != 6:
+            raise DataError(f"{self.task_id} task_state: true_state must be [N, 6], got "
+                            f"{list(z.shape)}")
+        return np.concatenate([z[:, 0:2] - z[:, 4:6], z[:, 2:4]], axis=1).astype(np.float32)
 
     def collect(self, kind: str, *, n_episodes: int, steps_per_episode: int, seed: int,
                 policy: Policy | None = None, progress: bool = True) -> Dataset:

@@ -49,8 +49,9 @@ def test_wheel_install_registers_builtin_plugins(wheel_site: Path, tmp_path: Pat
     assert lines[0].startswith(str(wheel_site)) and lines[1].startswith(str(wheel_site))
     import tomllib
 
-    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]
-    assert lines[2] == f"{len(declared['repbench.encoders'])} True" and lines[3] == "smoke"
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    n_builtin = len(pyproject["project"]["entry-points"]["repbench.encoders"])
+    assert lines[2] == f"{n_builtin} True" and lines[3] == "smoke"
 
 
 _PLUGIN_PYPROJECT = """

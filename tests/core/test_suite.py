@@ -46,7 +46,7 @@ def test_paper_suite_carries_the_papers_numbers() -> None:
                                        "ema_decay": 0.001}
     sac, ddpg = s.agent_params["sac"], s.agent_params["ddpg"]
     assert sac["buffer_size"] == 3_000_000 and sac["batch_size"] == 256 and sac["tau"] == 0.005
-    assert ddpg["action_noise"] == 0.25 and len(s.encoders) == 14
+    assert ddpg["action_noise"] == 0.25 and len(s.encoders) == 15  # the 14 + oracle_task
 
 
 def test_user_suite_file(tmp_path: Path) -> None:

@@ -97,5 +97,9 @@ def test_task_target_is_the_tasks_task_state(peg_like_dataset: Dataset) -> None:
 
 
 def test_task_target_needs_a_registered_task(tiny_dataset: Dataset) -> None:
+    import dataclasses
+
+    unknown = dataclasses.replace(tiny_dataset, metadata={**tiny_dataset.metadata,
+                                                          "task": "synthetic"})
     with pytest.raises(DataError, match=r"needs the dataset's task to be registered.*'synthetic'"):
-        repbench.encoders.get("supervised_task")(**FAST).fit(tiny_dataset)
+        repbench.encoders.get("supervised_task")(**FAST).fit(unknown)

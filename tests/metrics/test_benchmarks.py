@@ -8,7 +8,7 @@ import pytest
 
 from repbench.metrics.mutual_information import ksg_mi
 from repbench.registry import metrics
-from repbench.testing.metric import synthetic_true_state
+from repbench.testing.metric import synthetic_extra_inputs, synthetic_true_state
 
 from ._reference import ksg_mi_reference
 
@@ -37,10 +37,14 @@ def test_bench_ksg_per_point_reference(benchmark, paper_size) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["mine", "regression", "coherence", "smoothness_objective"])
+@pytest.mark.parametrize("name", ["mine", "regression", "coherence", "smoothness_objective",
+                                  "task_cmi", "task_r2_gain", "task_probe", "action_probe"])
 def test_bench_metric(benchmark, paper_size, name: str) -> None:
     z, zt, ep = paper_size
-    res = _once(benchmark, metrics.get(name), z, zt, ep, 0, n_bootstrap=100)
+    fn = metrics.get(name)
+    extra = synthetic_extra_inputs(zt, ep)
+    kw = {k: extra[k] for k in fn.extra_inputs}
+    res = _once(benchmark, fn, z, zt, ep, 0, n_bootstrap=100, **kw)
     benchmark.extra_info["value"] = res.value
     if name == "mine":
         benchmark.extra_info["steps"] = res.extras["steps"]

@@ -128,8 +128,21 @@ def test_coherence_identity_vs_shuffled() -> None:
 def test_coherence_matches_brute_force() -> None:
     rng = np.random.default_rng(1)
     z, zt = rng.standard_normal((300, 4)), rng.standard_normal((300, 3))
-    res = coherence(z, zt, np.zeros(300, int), 0, standardize_true=False, n_bootstrap=0)
+    res = coherence(z, zt, np.zeros(300, int), 0, standardize_true=False, standardize_z=False,
+                    n_bootstrap=0)
     assert res.value == pytest.approx(knn_mse_reference(z, zt, 5), rel=1e-12)
+
+
+def test_coherence_standardizes_z_as_the_policy_does() -> None:
+    rng = np.random.default_rng(2)
+    z, zt = rng.standard_normal((300, 4)) * [1.0, 50.0, 0.1, 3.0], rng.standard_normal((300, 3))
+    res = coherence(z, zt, np.zeros(300, int), 0, standardize_true=False, n_bootstrap=0)
+    zs = (z - z.mean(0)) / z.std(0)
+    assert res.value == pytest.approx(knn_mse_reference(zs, zt, 5), rel=1e-12)
+    # per-dimension rescaling of z no longer changes the neighbourhoods
+    again = coherence(z * [7.0, 0.01, 3.0, 1.0], zt, np.zeros(300, int), 0,
+                      standardize_true=False, n_bootstrap=0)
+    assert again.value == pytest.approx(res.value, rel=1e-9)
 
 
 def test_coherence_constant_z_is_random_neighbour_value() -> None:

@@ -9,27 +9,9 @@ import numpy as np
 import torch
 
 import repbench
-from repbench.dataset import TRUE_STATE
+from repbench.encoder import TrueStateEncoder  # z = z°, the oracle
 
-
-class TrueStateEncoder(repbench.Encoder):
-    """z = z° (the privileged ``true_state`` modality), like the ``oracle`` baseline."""
-
-    required_modalities = (TRUE_STATE,)
-
-    def __init__(self) -> None:
-        pass
-
-    def fit(self, dataset: repbench.Dataset) -> TrueStateEncoder:
-        self.dim_ = int(dataset.true_state.shape[1])
-        return self
-
-    def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
-        return self.check_observations(observations)[TRUE_STATE].astype(np.float32)
-
-    @property
-    def latent_dim(self) -> int:
-        return self.dim_
+__all__ = ["BadEncoder", "ConvEncoder", "NoiseEncoder", "TrueStateEncoder"]
 
 
 class NoiseEncoder(repbench.Encoder):

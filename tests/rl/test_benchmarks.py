@@ -97,3 +97,54 @@ def test_training_steps_vae_vs_oracle(benchmark, task_name):
     print(f"\n[{task_name}, SAC training] steps/s oracle {med['oracle']:.1f}, "
           f"VAE {med['vae']:.1f}; VAE/oracle = {ratio:.3f}")
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+def _updates_per_s(model: Any, n: int) -> float:
+    t0 = time.perf_counter()
+    model.train(gradient_steps=n, batch_size=256)
+    return n / (time.perf_counter() - t0)
+
+
+def test_sac_update_step_threads(benchmark):
+    """SAC gradient updates/s (batch 256, 256×256 networks as the privileged agent uses) with
+    one torch thread vs two, alternating rounds in the same run; the faster one is adopted
+    as ``torch_threads``'s default."""
+    task = ToyReachTask(horizon=50)
+    enc = TrueStateEncoder().fit(task.collect("random", n_episodes=2, steps_per_episode=20,
+                                              seed=0, progress=False))
+    agent = SACAgent(hidden_sizes=(256, 256), learning_starts=0, progress=False)
+    env = make_encoded_env(task, enc, seed=0)
+    model = agent.build_model(env, seed=0, buffer_size=2000)
+    model.learn(total_timesteps=600, progress_bar=False)  # fills the buffer, warms up
+    rates: dict[int, list[float]] = {1: [], 2: []}
+    for _ in range(3):
+        for threads in rates:
+            with torch_threads(threads):
+                rates[threads].append(_updates_per_s(model, 200))
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    benchmark.extra_info.update({f"threads_{k}_updates_per_s": v for k, v in med.items()})
+    benchmark.extra_info["two_over_one"] = med[2] / med[1]
+    print(f"\n[SAC update step] updates/s 1 thread {med[1]:.0f}, 2 threads {med[2]:.0f}; "
+          f"2/1 = {med[2] / med[1]:.2f}")
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+def test_env_steps_without_rendering(benchmark):
+    """PegInHole env steps/s for an encoder that reads no image (physics only) vs one that
+    does (rendered wrist camera), same run."""
+    task = _task("PegInHole-v0")
+    envs = {"rendered": task.make_agent_env(seed=0, modalities=("image", "ft", "proprio")),
+            "physics_only": task.make_agent_env(seed=0, modalities=("proprio", "true_state"))}
+    rates: dict[str, list[float]] = {k: [] for k in envs}
+    for _ in range(3):
+        for k, env in envs.items():
+            rates[k].append(_env_rate(env, 100))
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    benchmark.extra_info.update({f"{k}_steps_per_s": v for k, v in med.items()})
+    ratio = med["physics_only"] / med["rendered"]
+    benchmark.extra_info["physics_only_over_rendered"] = ratio
+    print(f"\n[PegInHole env] steps/s rendered {med['rendered']:.0f}, physics only "
+          f"{med['physics_only']:.0f}; ratio {ratio:.2f}")
+    for env in envs.values():
+        env.close()
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)

@@ -9,7 +9,7 @@ import pytest
 
 import repbench
 from repbench.errors import ConfigError, PluginError
-from repbench.rl import DDPGAgent, SACAgent, eval_seeds
+from repbench.rl import DDPGAgent, SACAgent
 from repbench.suite import load_suite
 from repbench.testing import check_agent
 
@@ -68,7 +68,7 @@ def test_sb3_model_matches_the_hyperparameters(toy_task, state_encoder):
 def test_check_agent_smoke(name, toy_task, state_encoder):
     result = check_agent(name, toy_task, state_encoder, train_steps=80, **TINY)
     assert result.extras["agent"] == name
-    assert result.extras["eval_seeds"] == eval_seeds(2)
+    assert result.extras["eval_resets"] == toy_task.evaluation_resets(2)
     assert result.extras["observation_dim"] == 10
     assert result.extras["effective_buffer_size"] <= 81  # capped at the run's length
 

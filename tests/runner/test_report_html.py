@@ -51,3 +51,11 @@ def test_page_is_self_contained_and_escaped(tmp_path: Path) -> None:
     assert 'class="sortable"' in html
     assert (out / "encoders.csv").is_file() and (out / "metrics.csv").is_file()
     assert (out / "figures" / "metric_vs_return.png").is_file()
+
+
+def test_page_has_one_table_per_id(tmp_path: Path) -> None:
+    """Each table id appears once (a merge once left two encoder tables on the page)."""
+    write_leaderboards(_results(), tmp_path)
+    html = (tmp_path / "index.html").read_text()
+    assert html.count('id="encoders"') == 1 and html.count('id="metrics"') == 1
+    assert "95% t-interval" not in html

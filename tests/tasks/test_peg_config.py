@@ -104,3 +104,42 @@ def test_weight_wrench_batch_equals_single_samples_and_np_cross() -> None:
     ref = np.concatenate([np.einsum("nji,j->ni", rots, support),
                           np.einsum("nji,nj->ni", rots, np.cross(com - pos, support))], axis=1)
     np.testing.assert_allclose(batch, ref, rtol=0, atol=1e-12)
+
+
+def test_evaluation_resets_cover_the_grid_then_off_grid_holes() -> None:
+    task = PegInHoleTask()
+    resets = task.evaluation_resets(40)
+    assert resets == task.evaluation_resets(40)  # fixed
+    assert len({r["seed"] for r in resets}) == 40
+    assert [r["options"]["hole_index"] for r in resets[:25]] == list(range(25))
+    grid = task.config().grid_positions()
+    half = task.grid_extent / 2
+    for r in resets[25:]:
+        xy = np.asarray(r["options"]["hole_xy"])
+        assert np.all(np.abs(xy) <= half)
+        assert np.min(np.linalg.norm(grid - xy, axis=1)) >= 0.01
+    with pytest.raises(ConfigError, match="evaluation episodes"):
+        task.evaluation_resets(0)
+
+
+def test_robot_view_tip_is_tip_position_and_velocity() -> None:
+    proprio = np.arange(20, dtype=np.float32)
+    np.testing.assert_array_equal(PegInHoleTask(robot_view="tip").robot_state(
+        {"proprio": proprio}), np.arange(14, 20))
+    np.testing.assert_array_equal(
+        PegInHoleTask(robot_view="proprio").robot_state({"proprio": proprio}), proprio)
+    assert PegInHoleTask().robot_view == "tip"
+    with pytest.raises(ConfigError, match="robot_view"):
+        PegInHoleTask(robot_view="joints")
+
+
+def test_agent_env_renders_only_for_image_encoders() -> None:
+    env = PegInHoleTask().make_agent_env(seed=0, modalities=("proprio", "true_state"))
+    try:
+        assert env.config.camera is False
+        obs, _ = env.reset(seed=0)
+        assert not obs["image"].any()
+    finally:
+        env.close()
+    with pytest.raises(ConfigError, match="camera=False but the encoder reads"):
+        PegInHoleTask(camera=False).make_agent_env(modalities=("image", "ft"))

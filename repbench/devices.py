@@ -1,0 +1,56 @@
+"""Device and thread settings, in one place for encoders, metrics, agents and executors.
+
+* :func:`resolve_device` — ``"auto"`` → ``"cuda"`` when torch sees a GPU, else ``"cpu"``; any
+  other value is checked to be a torch device and returned unchanged.
+* :func:`torch_threads` — inside the block torch (and, with ``blas=True``, the BLAS/OpenMP pools
+  of numpy and scikit-learn) use ``n`` threads; the previous settings come back afterwards.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+from repbench.errors import ConfigError
+
+
+def resolve_device(device: str) -> str:
+    """``"auto"`` → ``"cuda"`` if torch sees a GPU, else ``"cpu"``; ``"cpu"``, ``"cuda"``,
+    ``"cuda:1"`` ... unchanged; anything torch does not know raises ConfigError."""
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    try:
+        torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise ConfigError(f"device {device!r} is not a torch device ({exc}); use 'auto', "
+                          "'cpu' or 'cuda'") from None
+    return device
+
+
+@contextlib.contextmanager
+def torch_threads(n: int | None, *, blas: bool = False) -> Iterator[None]:
+    """Use ``n`` torch intra-op threads inside the block (``None``: leave settings alone).
+
+    ``blas=True`` also limits the BLAS/OpenMP thread pools (threadpoolctl), as the process-pool
+    and Ray executors do: workers then do not oversubscribe the cores, and every executor sums
+    in the same order, so deterministic stages give bit-identical results everywhere.
+    """
+    if n is None:
+        yield
+        return
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(int(n))
+    try:
+        if blas:
+            from threadpoolctl import threadpool_limits
+
+            with threadpool_limits(limits=int(n)):
+                yield
+        else:
+            yield
+    finally:
+        torch.set_num_threads(before)

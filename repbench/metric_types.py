@@ -1,0 +1,176 @@
+"""The metric types: :class:`MetricResult` and :class:`Metric` (the registry's base for metrics).
+
+Kept below :mod:`repbench.registry`; the ``@repbench.metric`` decorator that creates and
+registers a :class:`Metric` is in :mod:`repbench.metric`. Write metrics as described there.
+
+The metric API: pure functions of arrays returning a :class:`MetricResult`.
+
+A metric is a function ``fn(z, z_true, episode, rng, **params) -> MetricResult`` where
+
+* ``z`` — float ``[N, D]`` latents (μ_z), rows ordered by (episode, step);
+* ``z_true`` — float ``[N, S]`` true state z°;
+* ``episode`` — int ``[N]`` episode ids (consecutive rows of one episode are consecutive steps);
+* ``rng`` — a ``numpy.random.Generator``; a fixed seed gives a reproducible value.
+
+Register it with the decorator, which also validates inputs before the function runs::
+
+    @repbench.metric("my_metric", higher_is_better=True, description="...")
+    def my_metric(z, z_true, episode, rng, *, k=5) -> MetricResult: ...
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from repbench.errors import DataError
+
+#: Arrays beside (z, z_true, episode) that a metric can ask for by naming a keyword parameter
+#: (see :mod:`repbench.metric`).
+EXTRA_INPUTS = ("robot_state", "task_state", "action", "source")
+#: Which rows of the stored latents a metric is computed on (see :mod:`repbench.metric`).
+ROWS = ("all", "on_policy")
+
+
+@dataclass(frozen=True)
+class MetricResult:
+    """One metric's value with its direction, uncertainty and details.
+
+    Attributes:
+        value: the scalar score.
+        higher_is_better: direction, used by correlation and leaderboards.
+        ci_low, ci_high: confidence interval (bootstrap or repeated seeds), when available.
+        extras: JSON-serializable details: per-dimension values, curves, histograms.
+    """
+
+    value: float
+    higher_is_better: bool
+    ci_low: float | None = None
+    ci_high: float | None = None
+    extras: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"value": self.value, "higher_is_better": self.higher_is_better,
+                "ci_low": self.ci_low, "ci_high": self.ci_high, "extras": _jsonable(self.extras)}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> MetricResult:
+        return cls(value=float(d["value"]), higher_is_better=bool(d["higher_is_better"]),
+                   ci_low=d.get("ci_low"), ci_high=d.get("ci_high"),
+                   extras=dict(d.get("extras") or {}))
+
+
+class Metric:
+    """A registered metric function with its direction, description and input checks."""
+
+    def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
+                 description: str = "", min_samples: int = 10, needs_episodes: bool = False,
+                 version: int = 0, rows: str = "all") -> None:
+        if rows not in ROWS:
+            raise ValueError(f"metric {name!r}: rows must be one of {ROWS}, got {rows!r}")
+        self.fn = fn
+        #: which rows of the stored latents the metric stage computes it on
+        self.rows = rows
+        #: declared version of what the metric computes (see :class:`repbench.Encoder.version`)
+        self.version = int(version)
+        self.name = name
+        self.higher_is_better = higher_is_better
+        self.description = description or (fn.__doc__ or "").strip().split("\n")[0]
+        self.min_samples = min_samples
+        self.needs_episodes = needs_episodes
+        functools.update_wrapper(self, fn)
+        self.__doc__ = fn.__doc__ or self.description
+
+    def __call__(self, z: np.ndarray, z_true: np.ndarray, episode: np.ndarray | None = None,
+                 rng: np.random.Generator | int | None = None, **params: Any) -> MetricResult:
+        z, z_true, episode = check_metric_inputs(
+            z, z_true, episode, name=self.name, min_samples=self.min_samples,
+        )
+        for key in self.extra_inputs:
+            if key in params and params[key] is not None:
+                params[key] = check_extra_input(params[key], key, len(z), name=self.name)
+        if not isinstance(rng, np.random.Generator):
+            rng = np.random.default_rng(0 if rng is None else rng)
+        result = self.fn(z, z_true, episode, rng, **params)
+        if not isinstance(result, MetricResult):
+            raise TypeError(f"metric {self.name!r} returned {type(result)}, not MetricResult")
+        if result.higher_is_better != self.higher_is_better:
+            raise TypeError(f"metric {self.name!r} returned a result with the wrong direction")
+        return result
+
+    @property
+    def extra_inputs(self) -> tuple[str, ...]:
+        """The names in :data:`EXTRA_INPUTS` that the function's signature accepts."""
+        import inspect
+
+        sig = inspect.signature(self.fn).parameters
+        return tuple(k for k in EXTRA_INPUTS if k in sig)
+
+    def __repr__(self) -> str:
+        return f"<Metric {self.name} ({'higher' if self.higher_is_better else 'lower'} is better)>"
+
+
+def check_metric_inputs(z: Any, z_true: Any, episode: Any = None, *, name: str = "metric",
+                        min_samples: int = 10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Validate and convert metric inputs; raise DataError with a one-line message."""
+    z = np.asarray(z, dtype=np.float64)
+    z_true = np.asarray(z_true, dtype=np.float64)
+    for label, arr in (("z", z), ("z_true", z_true)):
+        if arr.ndim != 2:
+            raise DataError(f"{name}: {label} must be 2-D [samples, dims], got shape {arr.shape}")
+        if not np.isfinite(arr).all():
+            bad = int((~np.isfinite(arr)).any(axis=1).sum())
+            raise DataError(f"{name}: {label} has NaN/inf in {bad} rows; drop or fix them first")
+    if z.shape[0] != z_true.shape[0]:
+        raise DataError(
+            f"{name}: z has {z.shape[0]} rows but z_true has {z_true.shape[0]}; they must align"
+        )
+    if z.shape[0] < min_samples:
+        raise DataError(f"{name}: needs at least {min_samples} samples, got {z.shape[0]}")
+    if episode is None:
+        episode = np.zeros(z.shape[0], dtype=np.int64)
+    episode = np.asarray(episode)
+    if episode.shape != (z.shape[0],):
+        raise DataError(f"{name}: episode must have shape ({z.shape[0]},), got {episode.shape}")
+    return z, z_true, episode
+
+
+def check_extra_input(value: Any, key: str, n: int, *, name: str = "metric") -> np.ndarray:
+    """Validate one extra array (:data:`EXTRA_INPUTS`): aligned with z, finite, right rank."""
+    arr = np.asarray(value)
+    if key == "source":
+        if arr.shape != (n,):
+            raise DataError(f"{name}: source must have shape ({n},), got {arr.shape}")
+        return arr
+    arr = np.asarray(arr, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or arr.shape[0] != n:
+        raise DataError(f"{name}: {key} must be [{n}, dims] aligned with z, got shape "
+                        f"{arr.shape}")
+    if not np.isfinite(arr).all():
+        bad = int((~np.isfinite(arr)).any(axis=1).sum())
+        raise DataError(f"{name}: {key} has NaN/inf in {bad} rows; drop or fix them first")
+    return arr
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value

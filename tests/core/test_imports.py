@@ -1,0 +1,78 @@
+"""The core's import graph has no circle: each module imports alone, and no chain of imports
+(module-level or inside functions) leads from a module back to itself."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[2] / "repbench"
+
+#: The core layer, bottom to top.
+CORE = ["errors", "references", "dataset", "devices", "encoder", "task", "agent", "metric_types",
+        "registry", "metric", "gym_envs", "store", "suite", "stages", "plan", "executors",
+        "correlation", "leaderboard", "runner", "cli"]
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = path
+    return out
+
+
+def _imports(path: Path, known: set[str]) -> set[str]:
+    """repbench modules imported anywhere in ``path`` (top level and inside functions)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            for alias in node.names:
+                sub = f"{node.module}.{alias.name}"
+                found.add(sub if sub in known else node.module)
+        elif isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+    return {m for m in found if m in known and m != "repbench"}
+
+
+def test_no_import_cycle_in_the_package() -> None:
+    mods = _modules()
+    known = set(mods)
+    graph = {m: _imports(p, known) - {m} for m, p in mods.items() if m != "repbench"}
+    state: dict[str, int] = {}  # 1 = on the current path, 2 = done
+
+    def visit(m: str, path: list[str]) -> None:
+        state[m] = 1
+        for dep in sorted(graph.get(m, ())):
+            if state.get(dep) == 1:
+                cycle = [*path[path.index(dep):], dep] if dep in path else [m, dep]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if dep not in state:
+                visit(dep, [*path, dep])
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [m])
+
+
+def test_registry_imports_the_plugin_bases_at_top_level() -> None:
+    tree = ast.parse((PACKAGE / "registry.py").read_text())
+    top = {n.module for n in tree.body if isinstance(n, ast.ImportFrom)}
+    assert {"repbench.encoder", "repbench.task", "repbench.agent",
+            "repbench.metric_types"} <= top
+    nested = [n for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)
+              for n in ast.walk(f) if isinstance(n, (ast.Import, ast.ImportFrom))]
+    assert not nested, "registry.py imports inside functions"
+
+
+@pytest.mark.parametrize("module", CORE)
+def test_each_core_module_imports_alone(module: str) -> None:
+    out = subprocess.run([sys.executable, "-c", f"import repbench.{module}"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr

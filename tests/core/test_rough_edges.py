@@ -1,0 +1,121 @@
+"""What a new user hits first: each mistake is one line on stderr with exit code 2."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from repbench.errors import ConfigError
+from repbench.plan import build_plan
+from repbench.suite import load_suite
+
+ROOT = Path(__file__).resolve().parents[2]
+
+_SUITE = """
+tasks = ["PegInHole-v0"]
+encoders = ["oracle", "pca", "vae"]
+metrics = ["ksg"]
+agents = ["sac"]
+[dataset]
+random_episodes = 2
+"""
+
+
+def _repbench(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "repbench.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=300)
+
+
+def _one_line_exit_2(out: subprocess.CompletedProcess[str], *needles: str) -> None:
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    for needle in needles:
+        assert needle in out.stderr, out.stderr
+
+
+def test_leaderboard_on_an_empty_store(tmp_path: Path) -> None:
+    out = _repbench("leaderboard", "--suite", "smoke", "--store", str(tmp_path / "empty"),
+                    "--out", str(tmp_path / "lb"))
+    _one_line_exit_2(out, "no results of suite 'smoke'", "repbench run --suite smoke")
+    assert not (tmp_path / "lb" / "encoders.csv").exists()
+
+
+def test_evaluate_unknown_encoder(tmp_path: Path) -> None:
+    out = _repbench("evaluate", "vea", "--suite", "smoke", "--store", str(tmp_path / "s"))
+    _one_line_exit_2(out, "unknown encoder 'vea'; did you mean 'vae'")
+
+
+def test_workers_below_one(tmp_path: Path) -> None:
+    out = _repbench("run", "--suite", "smoke", "--workers", "0", "--store", str(tmp_path / "s"))
+    _one_line_exit_2(out, "--workers must be at least 1, got 0")
+    assert not (tmp_path / "s" / "dataset").exists()
+
+
+@pytest.mark.parametrize("section, needle", [
+    ('[task_params."PegInHole-v0"]\nclearance = -1', "task_params.'PegInHole-v0'"),
+    ("[encoder_params.vae]\nepochs = -1", "encoder_params.vae"),
+    ("[encoder_params.pca]\nlatent_dim = 0", "encoder_params.pca"),
+    ("[agent_params.sac]\ntau = 2.0", "agent_params.sac"),
+    ("[agent_params.sac]\nlearning_starts = 100000", "agent_params.sac"),
+])
+def test_plugin_parameters_fail_at_plan_time(tmp_path: Path, section: str, needle: str) -> None:
+    suite = tmp_path / "bad.toml"
+    suite.write_text(_SUITE + section + "\n")
+    with pytest.raises(ConfigError, match=re.escape(needle)) as info:
+        build_plan(load_suite(suite))
+    assert str(suite) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_bad_task_parameter_on_the_command_line_runs_nothing(tmp_path: Path) -> None:
+    suite = tmp_path / "bad.toml"
+    suite.write_text(_SUITE + '[task_params."PegInHole-v0"]\nclearance = -1\n')
+    out = _repbench("run", "--suite", str(suite), "--store", str(tmp_path / "s"))
+    _one_line_exit_2(out, "task_params.'PegInHole-v0'", "clearance")
+    assert not (tmp_path / "s" / "dataset").exists()
+
+
+def test_a_user_suite_can_be_a_few_lines(tmp_path: Path) -> None:
+    suite = tmp_path / "few.toml"
+    suite.write_text(_SUITE)
+    s = load_suite(suite)
+    quick = load_suite("quick")
+    assert s.name == "few" and s.dataset.random_episodes == 2
+    assert s.dataset.random_steps == quick.dataset.random_steps  # documented defaults
+    assert s.rl == quick.rl and s.encoder_training == quick.encoder_training
+    assert s.seeds == quick.seeds
+    build_plan(s)
+
+
+def test_readme_installs_what_ci_installs_for_the_browser_test() -> None:
+    readme = (ROOT / "README.md").read_text()
+    block = next(b for b in re.findall(r"```bash\n(.*?)\n```", readme, re.S) if "pytest" in b)
+    apt = next(line for line in block.splitlines() if "apt-get install" in line)
+    ci = (ROOT / ".ci" / "run").read_text()
+    ci_packages = set(re.search(r"apt-get install -y -qq \\\n\s*(.*?) >", ci, re.S)
+                      .group(1).split())
+    assert "chromium" in apt.split() and ci_packages <= set(apt.split())
+
+
+def test_gym_ids_registered_on_import_repbench() -> None:
+    code = textwrap.dedent("""
+        import sys
+        import gymnasium, repbench
+        assert "robosuite" not in sys.modules and "repbench_tasks.peg_in_hole" not in sys.modules
+        print(sorted(i for i in gymnasium.registry if i.startswith("repbench/")))
+        env = gymnasium.make("repbench/ToyReach-v0", horizon=5)
+        obs, info = env.reset(seed=0)
+        print(sorted(obs), "true_state" in info)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    ids, obs = out.stdout.splitlines()
+    assert "'repbench/PegInHole-v0'" in ids and "'repbench/ToyReach-v0'" in ids
+    assert obs == "['ft', 'image', 'last_action', 'proprio'] True"
+    readme = (ROOT / "README.md").read_text()
+    assert 'gymnasium.make("repbench/PegInHole-v0"' in readme

@@ -1,0 +1,116 @@
+"""`repbench evaluate` on the toy task: only the new encoder's stages run; the leaderboard merges
+them with reference records and predicts the return from the metrics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import repbench
+from repbench.calibration import MIN_REFERENCE, predict_return
+from repbench.evaluate import evaluate_encoder
+from repbench.registry import encoders
+from repbench.runner import run_suite
+
+SUITE = """
+name = "toyeval"
+tasks = ["ToyReach-v0"]
+encoders = ["oracle", "pca", "proprio_only", "random"]
+metrics = ["ksg", "regression"]
+agents = ["sac"]
+seeds = [0]
+[dataset]
+random_episodes = 3
+random_steps = 20
+on_policy_episodes = 0
+[encoder_training]
+latent_dim = 3
+epochs = 1
+[rl]
+train_steps = 60
+eval_episodes = 1
+curve_points = 1
+[metric_settings]
+bootstrap = 5
+[task_params."ToyReach-v0"]
+horizon = 20
+[agent_params.sac]
+learning_starts = 20
+batch_size = 16
+normalize_steps = 0
+"""
+
+
+class HalfState(repbench.Encoder):
+    """Half of the proprioception (a deliberately partial encoder)."""
+
+    required_modalities = ("proprio",)
+
+    def __init__(self) -> None:
+        pass
+
+    def fit(self, dataset: repbench.Dataset) -> HalfState:
+        self.width_ = dataset.observations["proprio"].shape[1] // 2
+        return self
+
+    def encode(self, observations):  # type: ignore[no-untyped-def]
+        self.check_is_fitted()
+        p = self.check_observations(observations)["proprio"]
+        return p[:, : self.width_].astype(np.float32)
+
+    @property
+    def latent_dim(self) -> int:
+        return self.width_
+
+
+@pytest.fixture
+def half_state():
+    encoders.register("half_state", HalfState, replace=True)
+    yield "half_state"
+    encoders.unregister("half_state")
+
+
+def test_evaluate_metrics_only_against_reference_records(tmp_path: Path, half_state: str
+                                                         ) -> None:
+    suite = tmp_path / "toyeval.toml"
+    suite.write_text(SUITE)
+    store = tmp_path / "store"
+    run_suite(suite, store=store, out=tmp_path / "ref", workers=1, progress=False)
+    ref = tmp_path / "ref" / "records"
+    assert len(list(ref.rglob("*.json"))) > 10
+
+    # a fresh store: datasets are regenerated from their seeds; only half_state's stages run
+    res = evaluate_encoder(half_state, suite, metrics_only=True, store=tmp_path / "fresh",
+                           out=tmp_path / "eval", reference=ref, workers=1, progress=False)
+    kinds = sorted(label.split()[1] for label in res.report.labels.values())
+    assert not res.report.failed and "sac" not in " ".join(res.report.labels.values())
+    assert kinds.count("encoder") == 1 and res.warnings == []  # same data as the reference
+    enc = pd.read_csv(tmp_path / "eval" / "encoders.csv").set_index("encoder")
+    assert set(enc.index) == {"oracle", "pca", "proprio_only", "random", "half_state"}
+    assert enc["ksg"].notna().all() and pd.isna(enc.loc["half_state", "sac_return"])
+    pred = res.predictions[0]
+    assert pred["agent"] == "sac" and pred["n_reference"] == 4
+    assert pred["ci_low"] <= pred["predicted_return"] <= pred["ci_high"]
+    assert enc.loc["half_state", "sac_predicted_return"] == pytest.approx(
+        pred["predicted_return"], rel=1e-5)
+    html = (tmp_path / "eval" / "index.html").read_text()
+    assert '<tr class="highlight"' in html and "Predicted sac return of half_state" in html
+    # the reference encoders' values are the shipped ones, unchanged
+    ref_enc = pd.read_csv(tmp_path / "ref" / "encoders.csv").set_index("encoder")
+    for e in ref_enc.index:
+        assert enc.loc[e, "ksg"] == pytest.approx(ref_enc.loc[e, "ksg"], rel=1e-5)
+
+
+def test_prediction_interval_is_leave_one_out() -> None:
+    metrics = {f"e{i}": {"m": float(i), "noise": float((i * 7) % 5)} for i in range(6)}
+    returns = {f"e{i}": 10.0 + 2.0 * i + (0.5 if i == 3 else 0.0) for i in range(6)}
+    pred = predict_return(metrics, returns, {"m": 2.5, "noise": 1.0})
+    assert pred is not None and pred["predictor"] == "m"
+    assert pred["predicted_return"] == pytest.approx(15.0, abs=0.3)
+    assert pred["ci_high"] - pred["predicted_return"] == pytest.approx(max(pred["loo_errors"]))
+    assert 0.4 < max(pred["loo_errors"]) < 1.0  # the bump at e3, seen out of sample
+    few = dict(list(metrics.items())[: MIN_REFERENCE - 1])
+    assert predict_return(few, returns, {"m": 1.0}) is None
