@@ -65,11 +65,14 @@ full_state_train_steps = 100
 epochs = 5
 """
     p = tmp_path / "x.toml"
-    p.write_text(base + "patience = 2\nvalidation_fraction = 0.0\n")  # (default: quick's 0.2)
+    p.write_text(base + "patience = 2\nvalidation_fraction = 0.0\n")
     with pytest.raises(ConfigError, match=r"patience > 0 .* needs validation_fraction > 0"):
         load_suite(p)
     p.write_text(base + "patience = 2\nvalidation_fraction = 0.2\n")
     assert load_suite(p).encoder_training.patience == 2
+    p.write_text(base)  # the defaults follow quick: early stopping on held-out episodes
+    training = load_suite(p).encoder_training
+    assert training.patience > 0 and training.validation_fraction > 0
 
 
 def test_quick_trains_every_encoder_with_early_stopping() -> None:
