@@ -17,7 +17,8 @@ for f in sorted(glob.glob(str(runs_dir / "*.json"))):
     a = d["args"]
     if a.get("tag") == "probe":
         continue
-    label = f"{a.get('tag') or a['encoder']} (robot state: {a['robot_view']})"
+    label = (f"{a.get('tag') or a['encoder']} (robot state: {a['robot_view']}, "
+             f"{a['steps'] // 1000}k steps)")
     runs.append((label, a["seed"], a["steps"], d))
 with open(out / "runs.csv", "w", newline="") as fh:
     w = csv.writer(fh)
