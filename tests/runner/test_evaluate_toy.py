@@ -15,33 +15,9 @@ from repbench.evaluate import evaluate_encoder
 from repbench.registry import encoders
 from repbench.runner import run_suite
 
-SUITE = """
-name = "toyeval"
-tasks = ["ToyReach-v0"]
-encoders = ["oracle", "pca", "proprio_only", "random"]
-metrics = ["ksg", "regression"]
-agents = ["sac"]
-seeds = [0]
-[dataset]
-random_episodes = 3
-random_steps = 20
-on_policy_episodes = 0
-[encoder_training]
-latent_dim = 3
-epochs = 1
-[rl]
-train_steps = 60
-eval_episodes = 1
-curve_points = 1
-[metric_settings]
-bootstrap = 5
-[task_params."ToyReach-v0"]
-horizon = 20
-[agent_params.sac]
-learning_starts = 20
-batch_size = 16
-normalize_steps = 0
-"""
+from .tiny_toy_suite import tiny_toy_suite
+
+SUITE = tiny_toy_suite("toyeval", ["oracle", "pca", "proprio_only", "random"])
 
 
 class HalfState(repbench.Encoder):
