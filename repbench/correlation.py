@@ -70,6 +70,45 @@ def batch_coefficients(x: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
             "kendall": _kendall_rows(x, y)}
 
 
+def bootstrap_resamples(xs: Sequence[np.ndarray], per_seed: Sequence[np.ndarray],
+                        rng: np.random.Generator, n_bootstrap: int,
+                        replicates: Sequence[Sequence[np.ndarray]] | None = None
+                        ) -> tuple[list[np.ndarray], np.ndarray]:
+    """The two-level bootstrap behind every interval here, shared by several metrics.
+
+    ``xs``: one array of per-encoder metric values per metric (same encoder order);
+    ``per_seed``: each encoder's returns over seeds. Each resample draws encoders with
+    replacement (resamples with fewer than 3 distinct encoders are dropped), then each drawn
+    encoder's seeds with replacement (its return is the mean of the drawn seeds); with
+    ``replicates`` (per metric, per encoder: that encoder's bootstrap replicates of the metric)
+    each drawn encoder's metric value is one of its replicates. The same encoder draws are used
+    for every metric, so differences between metrics are paired. Returns ``(xbs, yb)``: per
+    metric an array [B, n] and the returns [B, n].
+    """
+    n = len(per_seed)
+    idx = rng.integers(0, n, (n_bootstrap, n))  # encoders drawn with replacement
+    idx = idx[np.array([np.unique(row).size >= 3 for row in idx], dtype=bool)]
+    n_seeds = max(r.size for r in per_seed)
+    padded = np.array([np.resize(r, n_seeds) for r in per_seed])  # rows cycle their seeds
+    sizes = np.array([r.size for r in per_seed])
+    draws = (rng.random((idx.shape[0], n, n_seeds)) * sizes[idx][:, :, None]).astype(int)
+    mask = np.arange(n_seeds)[None, None, :] < sizes[idx][:, :, None]
+    picked = np.take_along_axis(padded[idx], draws, axis=2)
+    yb = (picked * mask).sum(2) / sizes[idx]
+    xbs = [np.asarray(x, dtype=float)[idx] for x in xs]
+    for k, reps in enumerate(replicates or []):
+        if reps is None:
+            continue
+        clean = [np.asarray(r, dtype=float) for r in reps]
+        clean = [r[np.isfinite(r)] if np.isfinite(r).any() else xs[k][i:i + 1]
+                 for i, r in enumerate(clean)]
+        n_reps = np.array([r.size for r in clean])
+        padded_x = np.array([np.resize(r, n_reps.max()) for r in clean])
+        pick = (rng.random(idx.shape) * n_reps[idx]).astype(int)
+        xbs[k] = padded_x[idx, pick]
+    return xbs, yb
+
+
 def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence[float]], *,
               higher_is_better: bool, n_bootstrap: int = 1000, confidence: float = 0.95,
               seed: int = 0, metric_replicates: Mapping[str, Sequence[float]] | None = None
@@ -106,28 +145,10 @@ def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence
     for m, (c, p) in _coefficients(x, y).items():
         out[m], out[f"{m}_p"] = c, p
     rng = np.random.default_rng(seed)
-    n = len(names)
-    idx = rng.integers(0, n, (n_bootstrap, n))  # encoders drawn with replacement
-    keep = np.array([np.unique(row).size >= 3 for row in idx], dtype=bool)
-    idx = idx[keep]
-    # within each drawn encoder, its seeds drawn with replacement: mean of a seed resample
-    n_seeds = max(r.size for r in per_seed)
-    padded = np.array([np.resize(r, n_seeds) for r in per_seed])  # rows cycle their seeds
-    sizes = np.array([r.size for r in per_seed])
-    draws = (rng.random((idx.shape[0], n, n_seeds)) * sizes[idx][:, :, None]).astype(int)
-    mask = np.arange(n_seeds)[None, None, :] < sizes[idx][:, :, None]
-    picked = np.take_along_axis(padded[idx], draws, axis=2)
-    yb = (picked * mask).sum(2) / sizes[idx]
-    xb = x[idx]
-    if metric_replicates:
-        reps = [np.asarray(metric_replicates.get(e) or [metric_values[e]], dtype=float)
-                for e in names]
-        reps = [r[np.isfinite(r)] if np.isfinite(r).any() else np.array([metric_values[e]])
-                for r, e in zip(reps, names, strict=True)]
-        n_reps = np.array([r.size for r in reps])
-        padded_x = np.array([np.resize(r, n_reps.max()) for r in reps])
-        pick = (rng.random(idx.shape) * n_reps[idx]).astype(int)
-        xb = sign * padded_x[idx, pick]
+    (xb,), yb = bootstrap_resamples(
+        [x], per_seed, rng, n_bootstrap,
+        [[sign * np.asarray(metric_replicates.get(e) or [metric_values[e]], dtype=float)
+          for e in names]] if metric_replicates else None)
     boot = batch_coefficients(xb, yb)
     alpha = (1.0 - confidence) / 2.0
     for m in METHODS:

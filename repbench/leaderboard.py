@@ -10,6 +10,8 @@ them by identity, :mod:`repbench.results`); nothing here reads a plan or the sto
   intervals and Holm/BH-adjusted p-values, leave-one-encoder-out error, cost in seconds), then
   Pearson, Spearman and Kendall over all encoders with bootstrap CIs and p-values — "which
   metric predicts RL performance".
+* ``claims.csv`` — the paper's claims checked against these records, each with its statistic,
+  interval and verdict (:mod:`repbench.claims`).
 * ``index.html`` — one self-contained page (see :mod:`repbench.report_html`).
 """
 
@@ -84,6 +86,15 @@ def _family(encoder: str) -> str:
         return "learned"
 
 
+def _families(res: Results) -> dict[str, str]:
+    """encoder → family for every encoder in the records."""
+    families = {r["encoder"]: r.get("family") or _family(r["encoder"])
+                for r in res.encoder_rows}
+    for r in res.metric_rows:
+        families.setdefault(r["encoder"], _family(r["encoder"]))
+    return families
+
+
 def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
                    ) -> tuple[pd.DataFrame, dict[tuple[str, str, str], dict[str, float]]]:
     """The metric leaderboard (:func:`repbench.correlation.metric_leaderboard`) as a table,
@@ -91,10 +102,7 @@ def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
     and the leave-one-encoder-out predicted returns per (task, agent, metric)."""
     from repbench.correlation import metric_leaderboard
 
-    families = {r["encoder"]: r.get("family") or _family(r["encoder"])
-                for r in res.encoder_rows}
-    for r in res.metric_rows:
-        families.setdefault(r["encoder"], _family(r["encoder"]))
+    families = _families(res)
     rows, preds = metric_leaderboard(res.metric_rows, res.rl_rows, families,
                                      res.provenance.get("directions", {}),
                                      n_bootstrap=n_bootstrap, seed=seed)
@@ -155,9 +163,24 @@ def metric_table(res: Results, n_bootstrap: int = 1000, seed: int = 0) -> pd.Dat
     return df
 
 
+def paper_claims(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
+    """The paper's claims (:func:`repbench.claims.check_claims`) for every task × agent with
+    RL results, as one table."""
+    from repbench.claims import check_claims, claims_table
+
+    if ranking.empty:
+        return pd.DataFrame()
+    families = _families(res)
+    tables = [claims_table(check_claims(res.metric_rows, res.rl_rows, ranking, families,
+                                        res.provenance.get("directions", {}), task=str(task),
+                                        agent=str(agent)), str(task), str(agent))
+              for (task, agent), _ in ranking.groupby(["task", "agent"])]
+    return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+
+
 def write_leaderboards(res: Results, out_dir: Path) -> Path:
-    """Write ``encoders.csv``, ``metrics.csv``, ``provenance.json``, figures, ``index.html`` and
-    the records they were computed from (``records/``)."""
+    """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``provenance.json``, figures,
+    ``index.html`` and the records they were computed from (``records/``)."""
     from repbench.figures import make_figures
     from repbench.report_html import render_html
 
@@ -168,13 +191,16 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
     if not ranking.empty and not met.empty:  # metrics.csv: the ranking's columns, its order
         met = ranking.merge(met, on=["task", "agent", "metric"], how="left")
         enc = add_loo_predicted_return(enc, ranking, res.loo_predictions)
+    claims = paper_claims(res, ranking)
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
+    claims.to_csv(out_dir / "claims.csv", index=False, float_format="%.6g")
     write_records(res.records, out_dir / "records")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)
     for stale in (out_dir / "figures").glob("*.png"):  # figures of an earlier write
         stale.unlink()
     figures = make_figures(res, met, out_dir / "figures")
-    (out_dir / "index.html").write_text(render_html(res, enc, met, figures), encoding="utf-8")
+    (out_dir / "index.html").write_text(render_html(res, enc, met, figures, claims),
+                                        encoding="utf-8")
     return out_dir

@@ -156,8 +156,41 @@ def _encoder_notes(res: Any) -> list[str]:
     return notes
 
 
+def _claims_section(claims: pd.DataFrame | None) -> list[str]:
+    """The paper's claims with their numbers and verdicts (:mod:`repbench.claims`)."""
+    if claims is None or claims.empty:
+        return []
+    out = ["<h2>Paper claims, checked</h2><p class='note'>Each claim of the paper as a signed "
+           "statistic, with its 95% interval and a verdict fixed before the data: "
+           "<b>reproduced</b> = interval excludes 0 on the claimed side (correlations: also "
+           "Holm-adjusted p &lt; 0.05); <b>not reproduced</b> = estimate on the other side; "
+           "<b>inconclusive</b> = right side, interval includes 0. Correlations are over the "
+           "learned encoders, as in the paper. The last rows answer the question the paper left "
+           "open: which metric predicts return best.</p>",
+           "<table id='claims'><thead><tr>" + "".join(
+               f"<th class='txt'>{h}</th>" for h in ("agent", "claim", "source", "statistic",
+                                                     "value [95% CI]", "verdict", "detail"))
+           + "</tr></thead><tbody>"]
+    colors = {"reproduced": "#dff5e1", "not reproduced": "#fbe0e0", "inconclusive": "#f3f0dc",
+              "significant": "#dff5e1", "not significant": "#f3f0dc"}
+    for r in claims.itertuples(index=False):
+        out.append(
+            f"<tr><td class='txt'>{html.escape(str(r.agent))}</td>"
+            f"<td class='txt' style='white-space:normal;min-width:220px'>"
+            f"{html.escape(str(r.claim))}</td><td class='txt'>{html.escape(str(r.source))}</td>"
+            f"<td class='txt' style='white-space:normal;min-width:200px'>"
+            f"{html.escape(str(r.statistic))}</td>"
+            f"<td>{_fmt(r.value)} <span class='ci'>[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
+            f"</span></td><td class='txt' style='background:{colors.get(str(r.verdict), '')}'>"
+            f"<b>{html.escape(str(r.verdict))}</b></td>"
+            f"<td class='txt' style='white-space:normal;min-width:260px'>"
+            f"{html.escape(str(r.detail))}</td></tr>")
+    out.append("</tbody></table>")
+    return out
+
+
 def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
-                figures: dict[str, Path]) -> str:
+                figures: dict[str, Path], claims: pd.DataFrame | None = None) -> str:
     """The whole page as a string."""
     prov = res.provenance
     title = f"repbench leaderboard — suite {prov.get('suite', '?')}"
@@ -190,6 +223,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "others' mean. cost_s: seconds to compute the metric for one encoder.</p>",
         _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
         else "<p>No correlations yet.</p>",
+        *_claims_section(claims),
         "<h2>Which metric predicts RL performance?</h2>",
         "<p class='note'>Correlation across encoders between each metric and the final "
         "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "

@@ -59,3 +59,13 @@ def test_page_has_one_table_per_id(tmp_path: Path) -> None:
     html = (tmp_path / "index.html").read_text()
     assert html.count('id="encoders"') == 1 and html.count('id="metrics"') == 1
     assert "95% t-interval" not in html
+
+
+def test_page_and_csv_carry_the_checked_claims(tmp_path: Path) -> None:
+    write_leaderboards(_results(), tmp_path)
+    html = (tmp_path / "index.html").read_text()
+    claims = (tmp_path / "claims.csv").read_text()
+    assert "Paper claims, checked" in html and "id='claims'" in html
+    assert "correlates positively with return" in claims
+    assert "Which metric predicts return best (all encoders)?" in claims
+    assert html.index("Paper claims, checked") < html.index("Which encoder is best?")
