@@ -2,8 +2,9 @@
 CSV/HTML. Which records a suite's leaderboard shows is decided by the caller (the runner selects
 them by identity, :mod:`repbench.results`); nothing here reads a plan or the store.
 
-* ``encoders.csv`` — one row per task × encoder: every metric with its CI, and per agent the RL
-  return over seeds (mean and interquartile mean, each with a stratified-bootstrap 95 %
+* ``encoders.csv`` — one row per task × encoder: how it was trained (fit time, epochs run, the
+  epoch kept by early stopping and its held-out loss), every metric with its CI, and per agent
+  the RL return over seeds (mean and interquartile mean, each with a stratified-bootstrap 95 %
   interval from rliable; seeds are the unit) and success rate.
 * ``metrics.csv`` — one row per task × agent × metric, ranked: the metric leaderboard
   (:func:`metric_ranking`: Spearman within the learned encoders and over all encoders with
@@ -31,12 +32,17 @@ from repbench.rl.aggregate import aggregate_seeds
 __all__ = ["Results", "build_results", "encoder_table", "metric_table", "write_leaderboards"]
 
 
+#: How each encoder was trained (from its encoder record; empty for untrained baselines).
+ENCODER_TRAINING_COLUMNS = ("fit_time_s", "epochs_run", "best_epoch", "heldout_loss")
+
+
 def encoder_table(res: Results) -> pd.DataFrame:
     """One row per task × encoder (see module docstring)."""
     rows: dict[tuple[str, str], dict[str, Any]] = {}
     for r in res.encoder_rows:
-        rows[(r["task"], r["encoder"])] = {"task": r["task"], "encoder": r["encoder"],
-                                           "latent_dim": r["latent_dim"]}
+        rows[(r["task"], r["encoder"])] = {
+            "task": r["task"], "encoder": r["encoder"], "latent_dim": r["latent_dim"],
+            **{k: r.get(k) for k in ENCODER_TRAINING_COLUMNS}}
     for r in res.metric_rows:
         row = rows.setdefault((r["task"], r["encoder"]), {"task": r["task"],
                                                           "encoder": r["encoder"]})

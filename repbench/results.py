@@ -154,7 +154,10 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
             res.encoder_rows.append({"task": task, "encoder": enc,
                                      "latent_dim": values.get("latent_dim"),
                                      "fit_time_s": values.get("fit_time_s"),
-                                     "family": values.get("family")})
+                                     "family": values.get("family"),
+                                     "best_epoch": values.get("best_epoch"),
+                                     "epochs_run": values.get("epochs_run"),
+                                     "heldout_loss": values.get("heldout_loss")})
             for stem, png in (values.get("files") or {}).items():
                 path = Path(r["_path"]).parent / png if r.get("_path") else None
                 if path is not None and path.is_file():
