@@ -87,6 +87,8 @@ def _correlation_claim(ranking: pd.DataFrame, metric: str, claim: str, source: s
     """A "metric correlates with return" claim from one metric-leaderboard row. The ranking's ρ
     is direction-normalized (positive = ranks encoders as RL does); ``raw_sign`` turns it back
     into ρ(metric value, return), the paper's convention."""
+    if ranking.empty or "metric" not in ranking:
+        return None
     rows = ranking[ranking["metric"] == metric]
     if rows.empty:
         return None

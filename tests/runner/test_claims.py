@@ -96,3 +96,11 @@ def test_claims_without_their_encoders_are_left_out() -> None:
     assert not any("Low-KL" in c.claim for c in claims)
     assert not any("smoothing loss" in c.claim for c in claims)
     assert any("(mine) correlates" in c.claim for c in claims)
+
+
+def test_claims_without_rl_correlations_still_compare_the_pairs() -> None:
+    metric_rows, rl_rows, families = _records()
+    claims = check_claims(metric_rows, rl_rows, pd.DataFrame(), families, DIRECTIONS, task="T",
+                          n_bootstrap=100)
+    assert not any("correlates" in c.claim or "Which metric" in c.claim for c in claims)
+    assert any(c.claim.startswith("Low-KL encoders have higher MI (ksg)") for c in claims)
