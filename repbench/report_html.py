@@ -189,6 +189,17 @@ def _claims_section(claims: pd.DataFrame | None) -> list[str]:
     return out
 
 
+def _partial_banner(res: Any) -> list[str]:
+    """A warning at the top when stages of the suite have not finished."""
+    if not res.missing:
+        return []
+    return [f"<p class='note' style='border-left-color:#c33'><b>Partial results:</b> "
+            f"{len(res.missing)} stages of this suite have not finished (listed under "
+            "<a href='#missing'>Missing results</a>); every table, correlation and claim below "
+            "is over the results that exist. Run the suite again with the same store to "
+            "finish it.</p>"]
+
+
 def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
                 figures: dict[str, Path], claims: pd.DataFrame | None = None) -> str:
     """The whole page as a string."""
@@ -212,6 +223,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         f"<p class='sub'>{html.escape(prov.get('description') or '')}</p>",
+        *_partial_banner(res),
         "<h2>Metric leaderboard</h2>",
         "<p class='note'>Metrics ranked by their Spearman ρ with RL return <b>within the learned "
         "encoders</b> (baselines such as the oracle and the untrained encoder excluded: they "
@@ -245,8 +257,8 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
     if not figures:
         parts.append("<p>No figures: no finished results.</p>")
     if res.missing:
-        parts.append("<h2>Missing results</h2><p class='note'>These stages have not finished "
-                     "(or failed); run the suite again to complete them.</p><ul>")
+        parts.append("<h2 id='missing'>Missing results</h2><p class='note'>These stages have "
+                     "not finished (or failed); run the suite again to complete them.</p><ul>")
         parts.extend(f"<li>{html.escape(m)}</li>" for m in res.missing[:200])
         parts.append("</ul>")
     parts.append("<h2>Provenance</h2><pre>" + html.escape(

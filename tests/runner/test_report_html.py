@@ -69,3 +69,14 @@ def test_page_and_csv_carry_the_checked_claims(tmp_path: Path) -> None:
     assert "correlates positively with return" in claims
     assert "Which metric predicts return best (all encoders)?" in claims
     assert html.index("Paper claims, checked") < html.index("Which encoder is best?")
+
+
+def test_partial_runs_say_so_at_the_top(tmp_path: Path) -> None:
+    write_leaderboards(_results(), tmp_path / "full")
+    assert "Partial results" not in (tmp_path / "full" / "index.html").read_text()
+    res = _results()
+    res.missing = ["T-v0 sac × pca s2", "T-v0 sac × vae s0"]
+    html = (write_leaderboards(res, tmp_path / "partial") / "index.html").read_text()
+    assert "<b>Partial results:</b> 2 stages" in html
+    assert html.index("Partial results") < html.index("Metric leaderboard")
+    assert "id='missing'" in html
