@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repbench.correlation import batch_coefficients, bootstrap_resamples
+from repbench.correlation import BASELINE_FAMILY, batch_coefficients, bootstrap_resamples
 
 __all__ = ["KL_PAIRS", "SMOOTHING_PAIRS", "Claim", "check_claims", "claims_table", "verdict"]
 
@@ -136,14 +136,21 @@ def _metric_samples(metric_rows: Sequence[Mapping[str, Any]], metric: str, task:
     return point, samples
 
 
-def _return_samples(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str,
-                    rng: np.random.Generator, n: int) -> tuple[dict[str, float],
-                                                              dict[str, np.ndarray]]:
-    """Each encoder's mean return over seeds, and its seed-bootstrap distribution."""
+def _returns_by_encoder(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str
+                        ) -> dict[str, list[float]]:
+    """encoder → final evaluation returns, one per seed."""
     by: dict[str, list[float]] = {}
     for r in rl_rows:
         if r["task"] == task and r["agent"] == agent:
             by.setdefault(r["encoder"], []).append(float(r["eval_return"]))
+    return by
+
+
+def _return_samples(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str,
+                    rng: np.random.Generator, n: int) -> tuple[dict[str, float],
+                                                              dict[str, np.ndarray]]:
+    """Each encoder's mean return over seeds, and its seed-bootstrap distribution."""
+    by = _returns_by_encoder(rl_rows, task, agent)
     point = {e: float(np.mean(v)) for e, v in by.items()}
     samples = {e: rng.choice(np.asarray(v), (n, len(v))).mean(1) for e, v in by.items()}
     return point, samples
@@ -176,12 +183,9 @@ def _difference_of_correlations(metric_rows: Sequence[Mapping[str, Any]],
             vals[r["metric"]][r["encoder"]] = float(r["value"])
             reps[r["metric"]][r["encoder"]] = list(
                 (r.get("extras") or {}).get("bootstrap_replicates") or [r["value"]])
-    ret: dict[str, list[float]] = {}
-    for r in rl_rows:
-        if r["task"] == task and r["agent"] == agent:
-            ret.setdefault(r["encoder"], []).append(float(r["eval_return"]))
+    ret = _returns_by_encoder(rl_rows, task, agent)
     names = sorted(e for e in ret if e in vals[a] and e in vals[b]
-                   and families.get(e, "learned") != "baseline"
+                   and families.get(e, "learned") != BASELINE_FAMILY
                    and np.isfinite(vals[a][e]) and np.isfinite(vals[b][e]))
     if len(names) < 4:
         return np.nan, np.nan, np.nan, len(names)
