@@ -13,7 +13,8 @@ Correlations are the metric leaderboard's Spearman ρ (:func:`repbench.correlati
 metric_leaderboard`) over the *learned* encoders — the paper correlated its VAE family, not
 baselines — with the all-encoder value in the detail. Paired comparisons (low vs standard KL,
 with vs without the smoothing loss) average the difference over the paper's encoder pairs;
-their intervals resample each encoder's metric from its own bootstrap replicates, or each
+their intervals resample each encoder's metric from its own bootstrap replicates (the same
+replicate index for every encoder: replicates are paired across encoders), or each
 encoder's RL seeds, with the pairs held fixed (the claim is about these objectives).
 Finally the question the paper left open — which metric predicts return best — is answered from
 the metric leaderboard, with its corrected p-value, interval and cost.
@@ -124,16 +125,21 @@ def _paired_difference(pairs: Sequence[tuple[str, str]], samples: Mapping[str, n
 def _metric_samples(metric_rows: Sequence[Mapping[str, Any]], metric: str, task: str,
                     rng: np.random.Generator, n: int) -> tuple[dict[str, float],
                                                               dict[str, np.ndarray]]:
-    point, samples = {}, {}
+    """Each encoder's metric value, and n draws from its bootstrap replicates — the same
+    replicate indices for every encoder, which keeps the pairing of replicates computed on the
+    same resample of held-out episodes (as :func:`repbench.correlation.bootstrap_resamples`)."""
+    point, reps_by = {}, {}
     for r in metric_rows:
         if r["metric"] != metric or r["task"] != task:
             continue
         point[r["encoder"]] = float(r["value"])
         reps = np.asarray((r.get("extras") or {}).get("bootstrap_replicates") or [r["value"]],
                           dtype=float)
-        reps = reps[np.isfinite(reps)] if np.isfinite(reps).any() else np.array([r["value"]])
-        samples[r["encoder"]] = rng.choice(reps, n)
-    return point, samples
+        reps_by[r["encoder"]] = (reps[np.isfinite(reps)] if np.isfinite(reps).any()
+                                 else np.array([r["value"]]))
+    longest = max((v.size for v in reps_by.values()), default=1)
+    pick = rng.integers(0, longest, n)
+    return point, {e: v[pick % v.size] for e, v in reps_by.items()}
 
 
 def _returns_by_encoder(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str

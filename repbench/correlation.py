@@ -10,7 +10,8 @@ p-values are scipy's (t-test for Pearson, exact/asymptotic for Spearman and Kend
 
 :func:`metric_leaderboard` builds the metric leaderboard on top: the Spearman ρ over all encoders
 and within the learned encoders only (the baselines — oracle, untrained, blind — anchor any pooled
-coefficient), intervals that also draw each encoder's metric from its own bootstrap replicates,
+coefficient), intervals that also draw each encoder's metric from its own bootstrap replicates
+(one replicate index per resample for all encoders: the replicates are paired),
 Holm and Benjamini–Hochberg adjusted p-values over all metric × agent tests (statsmodels), the
 leave-one-encoder-out error of predicting return from the metric, and the metric's cost.
 """
@@ -81,9 +82,13 @@ def bootstrap_resamples(xs: Sequence[np.ndarray], per_seed: Sequence[np.ndarray]
     replacement (resamples with fewer than 3 distinct encoders are dropped), then each drawn
     encoder's seeds with replacement (its return is the mean of the drawn seeds); with
     ``replicates`` (per metric, per encoder: that encoder's bootstrap replicates of the metric)
-    each drawn encoder's metric value is one of its replicates. The same encoder draws are used
-    for every metric, so differences between metrics are paired. Returns ``(xbs, yb)``: per
-    metric an array [B, n] and the returns [B, n].
+    each drawn encoder's metric value is one of its replicates — the *same* replicate index for
+    every encoder of a resample. Every encoder's metric is computed on the same held-out data
+    with the same seed, so replicate b of each encoder comes from the same resample of held-out
+    episodes; drawing one index per resample keeps that pairing, and noise common to all
+    encoders (a harder or easier draw of episodes) does not reorder them. The same encoder
+    draws are used for every metric, so differences between metrics are paired. Returns
+    ``(xbs, yb)``: per metric an array [B, n] and the returns [B, n].
     """
     n = len(per_seed)
     idx = rng.integers(0, n, (n_bootstrap, n))  # encoders drawn with replacement
@@ -104,7 +109,10 @@ def bootstrap_resamples(xs: Sequence[np.ndarray], per_seed: Sequence[np.ndarray]
                  for i, r in enumerate(clean)]
         n_reps = np.array([r.size for r in clean])
         padded_x = np.array([np.resize(r, n_reps.max()) for r in clean])
-        pick = (rng.random(idx.shape) * n_reps[idx]).astype(int)
+        # one replicate index per resample, shared by its encoders (rows of encoders with
+        # fewer replicates cycle, as np.resize pads them)
+        pick = np.broadcast_to((rng.random((idx.shape[0], 1)) * n_reps.max()).astype(int),
+                               idx.shape)
         xbs[k] = padded_x[idx, pick]
     return xbs, yb
 

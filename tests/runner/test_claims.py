@@ -104,3 +104,23 @@ def test_claims_without_rl_correlations_still_compare_the_pairs() -> None:
                           n_bootstrap=100)
     assert not any("correlates" in c.claim or "Which metric" in c.claim for c in claims)
     assert any(c.claim.startswith("Low-KL encoders have higher MI (ksg)") for c in claims)
+
+
+def test_pair_intervals_keep_replicates_paired_across_encoders() -> None:
+    """Replicate b of every encoder comes from the same resample of held-out episodes, so a
+    shift common to all encoders in replicate b cancels in a pair's difference."""
+    shift = np.random.default_rng(1).normal(size=100)  # large next to the 0.2 nats difference
+    metric_rows, rl_rows = [], []
+    for standard, low in KL_PAIRS:
+        for enc, v in ((low, 1.2), (standard, 1.0)):
+            metric_rows.append({"task": "T", "encoder": enc, "metric": "ksg", "value": v,
+                                "time_s": 1.0,
+                                "extras": {"bootstrap_replicates": list(v + shift)}})
+            rl_rows += [{"task": "T", "encoder": enc, "agent": "sac", "seed": s,
+                         "eval_return": 1.0 + s} for s in range(3)]
+    claims = check_claims(metric_rows, rl_rows, pd.DataFrame(), {}, {"ksg": True}, task="T",
+                          n_bootstrap=200)
+    ksg = next(c for c in claims if c.claim.startswith("Low-KL encoders have higher MI (ksg)"))
+    assert ksg.value == pytest.approx(0.2)
+    assert ksg.ci_low == pytest.approx(0.2) and ksg.ci_high == pytest.approx(0.2)
+    assert ksg.verdict == "reproduced"

@@ -61,6 +61,21 @@ def test_metric_replicates_widen_the_interval() -> None:
     assert width(noisy) > 2 * width(plain)
 
 
+def test_noise_shared_by_all_encoders_does_not_widen_the_interval() -> None:
+    """Replicate b of every encoder comes from the same resample of held-out episodes: a shift
+    common to all encoders in replicate b leaves their ranking, and so the interval, as it is."""
+    encs = [f"e{i}" for i in range(10)]
+    vals = {e: float(i) for i, e in enumerate(encs)}
+    rets = {e: [float(i), float(i) + 0.5, float(i) - 0.5] for i, e in enumerate(encs)}
+    shift = 8.0 * np.random.default_rng(0).normal(size=100)
+    shared = {e: list(float(i) + shift) for i, e in enumerate(encs)}
+    plain = correlate(vals, rets, higher_is_better=True, n_bootstrap=500)
+    common = correlate(vals, rets, higher_is_better=True, n_bootstrap=500,
+                       metric_replicates=shared)
+    for key in ("spearman_ci_low", "spearman_ci_high", "kendall_ci_low", "kendall_ci_high"):
+        assert common[key] == pytest.approx(plain[key], abs=1e-12), key
+
+
 def _records() -> tuple[list[dict], list[dict], dict[str, str]]:
     """Baselines anchor the correlation; within the learned encoders the metric is reversed."""
     enc_value_return = {"oracle": (10.0, 100.0), "blind": (0.0, 0.0),
