@@ -229,10 +229,11 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "encoders</b> (baselines such as the oracle and the untrained encoder excluded: they "
         "anchor any pooled correlation), then over all encoders. Brackets: 95% bootstrap "
         "interval resampling encoders, RL seeds and each encoder's metric estimate (its own "
-        "bootstrap replicates, paired across encoders). p_holm / p_bh: Holm and Benjamini–Hochberg adjusted p-values "
-        "over all metric × agent tests. loo_rmse: error of predicting an encoder's mean return "
-        "from the metric by a line fit on the other encoders; ratio &lt; 1 beats predicting the "
-        "others' mean. cost_s: seconds to compute the metric for one encoder.</p>",
+        "bootstrap replicates, paired across encoders). p_holm / p_bh: Holm and "
+        "Benjamini–Hochberg adjusted p-values over all metric × agent tests. loo_rmse: error "
+        "of predicting an encoder's mean return from the metric by a line fit on the other "
+        "encoders; ratio &lt; 1 beats predicting the others' mean. cost_s: seconds to compute "
+        "the metric for one encoder.</p>",
         _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
         else "<p>No correlations yet.</p>",
         *_claims_section(claims),
