@@ -23,6 +23,7 @@ __all__ = [
     "episode_bootstrap",
     "episode_bootstrap_replicates",
     "episode_rows",
+    "resampling_stream",
     "resolve_device",
     "seed_from",
     "standardize",
@@ -98,6 +99,7 @@ def episode_bootstrap_replicates(statistic: Callable[[np.ndarray], float], episo
     """
     if n_bootstrap <= 0:
         return None, None, []
+    rng = resampling_stream(rng)
     ids, rows = episode_rows(episode)
     if ids.size < 2:
         rows = [np.array([i]) for i in range(len(episode))]
@@ -115,6 +117,28 @@ def episode_bootstrap_replicates(statistic: Callable[[np.ndarray], float], episo
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return None, None, reps
     return lo, hi, reps
+
+
+#: spawn key of the episode-resampling stream (any fixed value; "b007" reads "boot")
+RESAMPLING_KEY = 0xB007
+
+
+def resampling_stream(rng: np.random.Generator) -> np.random.Generator:
+    """The stream that draws a metric's episode resamples: a fixed child of ``rng``'s seed.
+
+    It depends on the seed ``rng`` was created from, not on how much of ``rng`` the metric has
+    used already (jitter and noise draws grow with the latent size). So every encoder scored
+    with the same seed on the same held-out episodes gets the same resamples, and its bootstrap
+    replicate b is paired with every other encoder's replicate b (the correlation analysis draws
+    one replicate index for all encoders). A generator without a seed sequence is returned as
+    it is.
+    """
+    seq = getattr(rng.bit_generator, "seed_seq", None)
+    if not isinstance(seq, np.random.SeedSequence):
+        return rng
+    child = np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, RESAMPLING_KEY),
+                                   pool_size=seq.pool_size)
+    return np.random.default_rng(child)
 
 
 def seed_from(rng: np.random.Generator) -> int:

@@ -33,7 +33,9 @@ def knn_mse_terms(z: np.ndarray, z_true: np.ndarray, k: int = 5) -> np.ndarray:
     return ((z_true[nb] - z_true[:, None, :]) ** 2).sum(-1).mean(1)
 
 
-@metric("coherence", higher_is_better=False, version=1,  # v1: standardized z by default
+@metric("coherence", higher_is_better=False,
+        version=2,  # v1: standardized z by default; v2: episode resamples from
+        # resampling_stream, paired across encoders
         description="KNN-MSE (Raffin 2018): mean squared z° distance to the k=5 nearest in z")
 def coherence(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
               *, k: int = 5, standardize_true: bool = True, standardize_z: bool = True,

@@ -199,6 +199,7 @@ def _ksg_result(x: np.ndarray, y: np.ndarray, episode: np.ndarray, rng: np.rando
 
 # -- metrics -------------------------------------------------------------------------------------
 @metric("ksg", higher_is_better=True,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="KSG kNN estimate of I(z; z°) in nats on standardized inputs (ranking only)")
 def ksg(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator, *,
         k: int = 5, n_bootstrap: int = 100) -> MetricResult:
@@ -219,6 +220,7 @@ def ksg(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.G
 
 
 @metric("mi_noisy", higher_is_better=True,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="I(standardized z + σ·noise; z°) in nats: finite, comparable across encoders")
 def mi_noisy(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
              *, noise: float = 0.5, k: int = 5, n_bootstrap: int = 100) -> MetricResult:
@@ -246,6 +248,7 @@ def mi_noisy(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ran
 
 
 @metric("mine", higher_is_better=True,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="MINE estimate of I(z; z°) in nats on held-out episodes (paper's settings)")
 def mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator, *,
          hidden: int = 64, learning_rate: float = 5e-5, batch_size: int = 128,

@@ -72,6 +72,7 @@ def probe_r2(name: str, z: np.ndarray, robot_state: np.ndarray, target: np.ndarr
 
 
 @metric("task_probe", higher_is_better=True,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out R² of a linear probe from z ⊕ robot state to the task-frame state")
 def task_probe(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
                *, robot_state: np.ndarray | None = None, task_state: np.ndarray | None = None,
@@ -95,6 +96,7 @@ def task_probe(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
 
 
 @metric("action_probe", higher_is_better=True, rows="on_policy",
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out R² of a linear probe from z ⊕ robot state to the expert's action")
 def action_probe(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
                  rng: np.random.Generator, *, robot_state: np.ndarray | None = None,

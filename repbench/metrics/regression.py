@@ -47,6 +47,7 @@ def _fit_predict(x_tr: np.ndarray, y_tr: np.ndarray, x_te: np.ndarray, hidden: t
 
 
 @metric("regression", higher_is_better=False,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out (whole episodes) normalized L2 error of an MLP 64-64 from z to z°")
 def regression(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
                *, hidden: tuple[int, ...] = (64, 64), test_fraction: float = 0.3,

@@ -60,6 +60,7 @@ def latent_distance_curve(z: np.ndarray, episode: np.ndarray,
 
 
 @metric("smoothness", higher_is_better=False, rows="on_policy",
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Mean of ‖z_n − z_n+1‖ / ‖z°_n − z°_n+1‖ within episodes, scale-normalized")
 def smoothness(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
                *, normalize: bool = True, offsets: tuple[int, ...] = DEFAULT_OFFSETS,
@@ -133,6 +134,7 @@ def jacobian_bound(mean_sq_step: float, dim: int, alpha: float) -> float:
 
 
 @metric("smoothness_objective", higher_is_better=True, rows="on_policy",
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="H(z) − E ln|J_g| with the paper's bound on ln|J_g| (kNN entropy, k=5)")
 def smoothness_objective(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
                          rng: np.random.Generator, *, k: int = 5,

@@ -155,6 +155,7 @@ def _prepare(name: str, z: np.ndarray, task_state: np.ndarray | None,
 
 
 @metric("task_cmi", higher_is_better=True,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="I(z; task state | robot state) in nats: kNN CMI (Frenzel–Pompe), ranking")
 def task_cmi(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
              *, robot_state: np.ndarray | None = None, task_state: np.ndarray | None = None,
@@ -232,6 +233,7 @@ def r2_of(err: np.ndarray, dev: np.ndarray) -> float:
 
 
 @metric("task_r2_gain", higher_is_better=True,
+        version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out R² of the task state from z ⊕ robot state minus from robot state")
 def task_r2_gain(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
                  rng: np.random.Generator, *, robot_state: np.ndarray | None = None,
