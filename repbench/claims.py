@@ -29,7 +29,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repbench.correlation import BASELINE_FAMILY, batch_coefficients, bootstrap_resamples
+from repbench.correlation import (
+    BASELINE_FAMILY,
+    batch_coefficients,
+    bootstrap_resamples,
+    replicate_matrix,
+)
 
 __all__ = ["KL_PAIRS", "SMOOTHING_PAIRS", "Claim", "check_claims", "claims_table", "verdict"]
 
@@ -128,18 +133,15 @@ def _metric_samples(metric_rows: Sequence[Mapping[str, Any]], metric: str, task:
     """Each encoder's metric value, and n draws from its bootstrap replicates — the same
     replicate indices for every encoder, which keeps the pairing of replicates computed on the
     same resample of held-out episodes (as :func:`repbench.correlation.bootstrap_resamples`)."""
-    point, reps_by = {}, {}
-    for r in metric_rows:
-        if r["metric"] != metric or r["task"] != task:
-            continue
-        point[r["encoder"]] = float(r["value"])
-        reps = np.asarray((r.get("extras") or {}).get("bootstrap_replicates") or [r["value"]],
-                          dtype=float)
-        reps_by[r["encoder"]] = (reps[np.isfinite(reps)] if np.isfinite(reps).any()
-                                 else np.array([r["value"]]))
-    longest = max((v.size for v in reps_by.values()), default=1)
-    pick = rng.integers(0, longest, n)
-    return point, {e: v[pick % v.size] for e, v in reps_by.items()}
+    rows = [r for r in metric_rows if r["metric"] == metric and r["task"] == task]
+    point = {r["encoder"]: float(r["value"]) for r in rows}
+    if not rows:
+        return point, {}
+    paired = replicate_matrix(
+        [(r.get("extras") or {}).get("bootstrap_replicates") or [r["value"]] for r in rows],
+        [float(r["value"]) for r in rows])
+    pick = rng.integers(0, paired.shape[1], n)
+    return point, {r["encoder"]: paired[i, pick] for i, r in enumerate(rows)}
 
 
 def _returns_by_encoder(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str

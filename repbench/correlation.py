@@ -104,17 +104,26 @@ def bootstrap_resamples(xs: Sequence[np.ndarray], per_seed: Sequence[np.ndarray]
     for k, reps in enumerate(replicates or []):
         if reps is None:
             continue
-        clean = [np.asarray(r, dtype=float) for r in reps]
-        clean = [r[np.isfinite(r)] if np.isfinite(r).any() else xs[k][i:i + 1]
-                 for i, r in enumerate(clean)]
-        n_reps = np.array([r.size for r in clean])
-        padded_x = np.array([np.resize(r, n_reps.max()) for r in clean])
-        # one replicate index per resample, shared by its encoders (rows of encoders with
-        # fewer replicates cycle, as np.resize pads them)
-        pick = np.broadcast_to((rng.random((idx.shape[0], 1)) * n_reps.max()).astype(int),
+        paired = replicate_matrix(reps, xs[k])
+        # one replicate index per resample, shared by its encoders
+        pick = np.broadcast_to((rng.random((idx.shape[0], 1)) * paired.shape[1]).astype(int),
                                idx.shape)
-        xbs[k] = padded_x[idx, pick]
+        xbs[k] = paired[idx, pick]
     return xbs, yb
+
+
+def replicate_matrix(replicates: Sequence[Sequence[float]], values: Sequence[float]
+                     ) -> np.ndarray:
+    """Encoders' metric bootstrap replicates as one [n_encoders, R] array whose column b is
+    replicate b of every encoder (computed on the same resample of held-out episodes, so
+    columns are the draws that keep encoders paired). Non-finite replicates are dropped, an
+    encoder without any gets its point value from ``values``, and shorter rows cycle to the
+    longest one's length R."""
+    clean = [np.asarray(r, dtype=float) for r in replicates]
+    clean = [r[np.isfinite(r)] if np.isfinite(r).any() else np.asarray(values[i:i + 1], float)
+             for i, r in enumerate(clean)]
+    longest = max(r.size for r in clean)
+    return np.array([np.resize(r, longest) for r in clean])
 
 
 def correlate(metric_values: Mapping[str, float], returns: Mapping[str, Sequence[float]], *,
