@@ -13,7 +13,9 @@ A training run reads top to bottom in :meth:`SB3Agent.train_model`:
    when present);
 3. ``model.learn`` with a callback that samples the learning curve on fixed episodes;
 4. evaluate the final policy on the fixed evaluation episodes (seeds ``10_000 + i``), the same
-   hole positions and initial states for every encoder.
+   hole positions and initial states for every encoder. The learning curve's last point is read
+   from this evaluation (the curve's episodes are a subset of the evaluation episodes and the
+   policy is the same), not stepped a second time.
 """
 
 from __future__ import annotations
@@ -151,8 +153,9 @@ class SB3Agent(Agent):
 
     name: ClassVar[str] = "sb3"
     #: 1: evaluation on the task's fixed resets (every grid hole, then off-grid holes), curve
-    #: episodes spread over them, ``keep_best``.
-    version: ClassVar[int] = 1
+    #: episodes spread over them, ``keep_best``. 2: the curve's last point read from the final
+    #: evaluation (after the last update, not one update before it).
+    version: ClassVar[int] = 2
     #: SB3 algorithm name (``stable_baselines3.<ALGO>``).
     algorithm: ClassVar[str] = ""
 
@@ -335,22 +338,34 @@ class SB3Agent(Agent):
                 stats = feature_statistics(eval_env, self.normalize_steps,
                                            NORMALIZE_SEED_BASE + 1000 * seed)
             model = self.build_model(env, seed, buffer_size=buffer, feature_stats=stats)
-            # 3. learn, sampling the learning curve
+            # 3. learn, sampling the learning curve at its points
+            #    before the end; its last point comes from the final evaluation (step 4)
             resets = evaluation_resets(task, eval_episodes)
-            curve_resets = spread(resets, self.curve_episodes)
+            curve_index = spread(list(range(len(resets))), self.curve_episodes)
+            curve_resets = [resets[i] for i in curve_index]
             points = sorted({max(1, math.ceil(train_steps * (k + 1) / curve_points))
                              for k in range(curve_points)})
             callback = _make_curve_callback(self.name, enc_name, eval_env, curve_resets,
-                                            points, train_steps, progress, self.keep_best)
+                                            points[:-1], train_steps, progress, self.keep_best)
             t0 = time.perf_counter()
             model.learn(total_timesteps=train_steps, callback=callback, progress_bar=False)
             train_time = time.perf_counter() - t0
         finally:
             env.close()
-        if self.keep_best and callback.best_state is not None:
-            model.policy.load_state_dict(callback.best_state)
-        # 4. final evaluation on the fixed episodes
+        # 4. final evaluation on the fixed episodes; the curve's last point is its curve episodes
+        callback._check_finite()
         rets, succ = evaluate(model, eval_env, resets)
+        last = (float(np.mean([succ[i] for i in curve_index])),
+                float(np.mean([rets[i] for i in curve_index])))
+        callback.steps.append(int(model.num_timesteps))
+        callback.success.append(last[0])
+        callback.returns.append(last[1])
+        if self.keep_best:
+            if callback.best is None or last > callback.best:
+                callback.best_step = int(model.num_timesteps)
+            else:  # an earlier point was better: the result is that policy's evaluation
+                model.policy.load_state_dict(callback.best_state)
+                rets, succ = evaluate(model, eval_env, resets)
         eval_env.close()
         if not np.isfinite(rets).all():
             raise TrainingDivergedError(f"{self.name} on encoder {enc_name}: evaluation "

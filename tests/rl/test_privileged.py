@@ -64,8 +64,24 @@ def test_keep_best_ends_with_the_best_curve_point(toy_task, state_encoder) -> No
     last = SACAgent(keep_best=False, curve_episodes=3, **TINY).train(
         toy_task, state_encoder, train_steps=300, seed=0, eval_episodes=3, curve_points=4,
         progress=False)
-    assert last.extras["kept_step"] is None  # (SB3 takes one more gradient step after the
-    # last curve point, so the final policy is not the last point's)
+    assert last.extras["kept_step"] is None
+
+
+def test_last_curve_point_is_read_from_the_final_evaluation(toy_task, state_encoder) -> None:
+    # the last point is the final policy on the curve's episodes, which are a subset of the
+    # evaluation episodes: no second rollout, and the numbers agree exactly
+    from repbench.rl.agents import spread
+
+    result = SACAgent(curve_episodes=2, **TINY).train(
+        toy_task, state_encoder, train_steps=300, seed=0, eval_episodes=4, curve_points=3,
+        progress=False)
+    assert result.curve_steps[-1] == result.train_steps == 300
+    assert len(result.curve_steps) == 3
+    subset = spread(list(range(4)), 2)
+    rets = result.eval_episode_returns
+    assert result.curve_return[-1] == pytest.approx(np.mean([rets[i] for i in subset]))
+    succ = result.extras["eval_episode_success"]
+    assert result.curve_success[-1] == pytest.approx(np.mean([succ[i] for i in subset]))
 
 
 def test_curve_episodes_spread_over_the_evaluation_resets() -> None:
