@@ -1,17 +1,22 @@
-"""Sanity that can fail: at the ``quick`` RL budget the upper-bound encoder (``oracle_task``, the
-task-frame state) solves the peg-in-hole and clearly beats the untrained ``random`` encoder and
-the hole-blind ``proprio_only`` encoder.
+"""Sanity that can fail, at the ``quick`` RL budget: the privileged agent (the ceiling of
+return: SAC on the task-frame state, trained as quick trains it) solves the peg-in-hole, and the
+upper bound of information (``oracle_task``) clearly beats the untrained ``random`` encoder and
+the hole-blind ``proprio_only`` encoder at seed level.
+
+``oracle_task`` is *not* required to solve the task at the encoders' 10k-step budget, nor to
+beat the trained VAEs there: it is the ceiling of information, not of return (the team's
+decision, issue 20; at 10k steps it learns more slowly than the best VAEs).
 
 Run with ``pytest -m slow tests/rl/test_rl_sanity.py -s`` (prints the numbers). Training seeds
 run in parallel worker processes.
 
 The statistic was fixed before the runs it judges. Seeds are the unit of inference: each seed
 contributes one number, its mean return over the fixed evaluation episodes (episodes within a
-seed share one policy and are not independent samples). The upper bound must (1) reach >= 90 %
-success on the evaluation episodes in every seed, and (2) beat each baseline in a one-sided
-Welch t-test over the per-seed means at p < 0.01, with (3) its lowest seed above the baseline's
-highest. The toy task (physics-free, seconds) checks the same machinery on ``oracle`` vs
-``random``.
+seed share one policy and are not independent samples). (1) The privileged agent reaches
+>= 90 % success on the evaluation episodes. (2) The upper bound beats each baseline in a
+one-sided Welch t-test over the per-seed means at p < 0.01, with (3) its lowest seed above the
+baseline's highest. The toy task (physics-free, seconds) checks the same machinery on
+``oracle`` vs ``random``.
 """
 
 from __future__ import annotations
@@ -71,8 +76,6 @@ def test_upper_bound_beats_baselines_at_seed_level_on_quick_budget(task_name):
               f"success {run['success']:.2f}, curve {[round(x, 1) for x in run['curve']]}, "
               f"{run['steps_per_s']:.1f} steps/s, {run['wall']:.0f} s")
     up = np.array([runs[(task_name, upper, s)]["return"] for s in SEEDS])
-    if task_name != "toy":
-        assert min(runs[(task_name, upper, s)]["success"] for s in SEEDS) >= 0.9
     for base in baselines:
         b = np.array([runs[(task_name, base, s)]["return"] for s in SEEDS])
         test = stats.ttest_ind(up, b, equal_var=False, alternative="greater")
@@ -80,3 +83,32 @@ def test_upper_bound_beats_baselines_at_seed_level_on_quick_budget(task_name):
               f"{b.round(1).tolist()}; one-sided Welch t-test p = {test.pvalue:.2g}")
         assert test.pvalue < 0.01
         assert up.min() > b.max()
+
+
+def _train_privileged(task_name: str) -> dict:
+    """The privileged agent exactly as the quick suite trains it (a worker process)."""
+    from repbench.plan import build_plan
+
+    suite = repbench.load_suite("quick")
+    plan = build_plan(suite)
+    spec = next(t.full_state for t in plan.tasks if t.task == task_name)
+    cfg = spec.config
+    task = _task(task_name)
+    from repbench.rl import train_full_state_agent
+
+    data = task.collect("random", n_episodes=suite.dataset.random_episodes,
+                        steps_per_episode=suite.dataset.random_steps, seed=cfg["seed"],
+                        progress=False)
+    _, r = train_full_state_agent(task, train_steps=cfg["train_steps"], seed=cfg["seed"],
+                                  dataset=data, eval_episodes=cfg["eval_episodes"],
+                                  curve_points=cfg["curve_points"], progress=False,
+                                  **cfg["agent_params"])
+    return {"return": r.eval_return, "success": r.eval_success_rate, "curve": r.curve_success}
+
+
+@pytest.mark.slow
+def test_privileged_agent_solves_the_peg_in_hole_on_quick_budget():
+    run = _train_privileged("PegInHole-v0")
+    print(f"\n[PegInHole-v0] privileged SAC: eval return {run['return']:.1f}, success "
+          f"{run['success']:.2f}, curve success {run['curve']}")
+    assert run["success"] >= 0.9
