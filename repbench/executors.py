@@ -3,17 +3,26 @@
 All three call the same :func:`repbench.stages.execute`, so a deterministic stage gives the same
 artifact wherever it runs. The scheduler submits a stage as soon as its inputs exist; a failed
 stage is reported and its dependants are skipped, the rest of the suite still runs.
+
+Ctrl-C: pool workers ignore SIGINT (they start with it blocked, so not even a Ctrl-C during
+their start-up reaches them); the parent gets the KeyboardInterrupt, kills its workers (their
+running stages are never committed) and re-raises it, so the command line prints its
+one-line "interrupted" message. In-process, :func:`repbench.stages.execute` itself makes sure an
+interrupted stage is not committed.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import multiprocessing as mp
 import os
+import signal
+import threading
 import time
 import traceback
 from collections import defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -46,6 +55,7 @@ class Executor(Protocol):
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, dict[str, Any] | BaseException]]:
         ...
     def shutdown(self) -> None: ...
+    def abort(self) -> None: ...
 
 
 def _stage_id(spec: StageSpec) -> str:
@@ -79,6 +89,34 @@ class InProcessExecutor:
     def shutdown(self) -> None:
         pass
 
+    def abort(self) -> None:
+        pass
+
+
+def _init_worker() -> None:
+    """Pool worker start-up: ignore Ctrl-C (the parent stops its workers), then unblock SIGINT,
+    which the worker was started with blocked (:func:`_sigint_blocked`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # also discards one already pending
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """Block SIGINT in this thread while worker processes are started: they inherit the mask,
+    so a Ctrl-C before their initializer runs stays pending there and is then discarded
+    (:func:`_init_worker`). This process still gets it: another of its threads takes it, or
+    it is delivered when the block ends."""
+    if (not hasattr(signal, "pthread_sigmask")
+            or threading.current_thread() is not threading.main_thread()):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
 
 class LocalPoolExecutor:
     """A process pool sized to the machine (spawned workers, one torch thread each)."""
@@ -87,10 +125,12 @@ class LocalPoolExecutor:
         self.root = store_root
         self.capacity = workers
         self._pool = cf.ProcessPoolExecutor(max_workers=workers,
-                                            mp_context=mp.get_context("spawn"))
+                                            mp_context=mp.get_context("spawn"),
+                                            initializer=_init_worker)
 
     def submit(self, spec: StageSpec) -> cf.Future[dict[str, Any]]:
-        return self._pool.submit(_execute_catching, spec, self.root, 1)
+        with _sigint_blocked():  # submit starts a worker process when none is idle
+            return self._pool.submit(_execute_catching, spec, self.root, 1)
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
         done, _ = cf.wait(list(handles), return_when=cf.FIRST_COMPLETED)
@@ -104,6 +144,19 @@ class LocalPoolExecutor:
 
     def shutdown(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
+
+    def abort(self) -> None:
+        """Stop at once (Ctrl-C): kill the workers, so no running stage is committed."""
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        for p in processes:
+            with contextlib.suppress(OSError, ValueError):
+                p.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for p in processes:
+            with contextlib.suppress(OSError, ValueError, AssertionError):
+                p.join(timeout=5)
+                if p.is_alive():
+                    p.kill()
 
 
 class RayExecutor:
@@ -140,6 +193,9 @@ class RayExecutor:
         return out
 
     def shutdown(self) -> None:
+        pass
+
+    def abort(self) -> None:
         pass
 
 
@@ -214,9 +270,12 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                 bar.update(1)
             bar.set_postfix_str(_status(running, by_id, todo, durations, executor.capacity),
                                 refresh=True)
-    finally:
+    except BaseException:  # Ctrl-C (KeyboardInterrupt) or a bug: stop the running stages
         bar.close()
-        executor.shutdown()
+        executor.abort()
+        raise
+    bar.close()
+    executor.shutdown()
     return report
 
 

@@ -8,9 +8,12 @@ redoes nothing that finished.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import signal
+import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -260,20 +263,54 @@ def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) 
         return _execute(spec, store_root)
 
 
+@contextlib.contextmanager
+def interrupts_recorded() -> Iterator[list[int]]:
+    """Inside the block Ctrl-C (SIGINT) raises KeyboardInterrupt as usual *and* is recorded in
+    the list the block receives, so a stage is known to be interrupted even when a library
+    swallowed the exception and carried on (scikit-learn's MLP ``fit`` catches it and returns
+    a half-trained model). The previous handler comes back afterwards.
+
+    Nothing is installed outside the main thread (Python allows handlers only there) or where
+    SIGINT is ignored (pool workers: their parent stops them, :mod:`repbench.executors`).
+    """
+    seen: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield seen
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN:
+        yield seen
+        return
+
+    def record(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, record)
+    try:
+        yield seen
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     store = Store(store_root)
     key = spec.key
     start = time.time()
     if store.get(spec.kind, key) is not None:
         return {"key": key, "status": "cached", "seconds": 0.0}
-    with store.write(spec.kind, key, config=spec.config,
-                     inputs=[k for _, k in spec.inputs.values()],
-                     seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
+    # an artifact is committed only if its stage ran to the end without a Ctrl-C, whatever
+    # the plugin did with the KeyboardInterrupt: raising inside ``store.write`` discards it
+    with interrupts_recorded() as interrupted, store.write(
+            spec.kind, key, config=spec.config, inputs=[k for _, k in spec.inputs.values()],
+            seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
         cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)
         if spec.record is not None:
             _write_record(spec, store, writer, time.time() - start, time.process_time() - cpu)
+        if interrupted:
+            raise KeyboardInterrupt(f"stage {spec.label or key} was interrupted")
     return {"key": key, "status": "done", "seconds": time.time() - start}
 
 
