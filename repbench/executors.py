@@ -62,9 +62,9 @@ def _stage_id(spec: StageSpec) -> str:
     return f"{spec.kind}/{spec.key}"
 
 
-def _execute_catching(spec: StageSpec, root: str, threads: int | None) -> dict[str, Any]:
+def _execute_catching(spec: StageSpec, root: str) -> dict[str, Any]:
     try:
-        return execute(spec, root, threads)
+        return execute(spec, root)
     except Exception as exc:  # shipped back as data: exceptions from plugins may not pickle
         return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
 
@@ -80,7 +80,7 @@ class InProcessExecutor:
 
     def submit(self, spec: StageSpec) -> int:
         handle = len(self._results)
-        self._results[handle] = _execute_catching(spec, self.root, None)
+        self._results[handle] = _execute_catching(spec, self.root)
         return handle
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
@@ -119,7 +119,8 @@ def _sigint_blocked() -> Iterator[None]:
 
 
 class LocalPoolExecutor:
-    """A process pool sized to the machine (spawned workers, one torch thread each)."""
+    """A process pool sized to the machine (spawned workers; every stage, here as everywhere,
+    runs with :data:`repbench.stages.STAGE_THREADS` threads)."""
 
     def __init__(self, store_root: str, workers: int) -> None:
         self.root = store_root
@@ -130,7 +131,7 @@ class LocalPoolExecutor:
 
     def submit(self, spec: StageSpec) -> cf.Future[dict[str, Any]]:
         with _sigint_blocked():  # submit starts a worker process when none is idle
-            return self._pool.submit(_execute_catching, spec, self.root, 1)
+            return self._pool.submit(_execute_catching, spec, self.root)
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
         done, _ = cf.wait(list(handles), return_when=cf.FIRST_COMPLETED)
@@ -180,7 +181,7 @@ class RayExecutor:
         self._remote = ray.remote(num_cpus=1, max_retries=1)(_execute_catching)
 
     def submit(self, spec: StageSpec) -> Any:
-        return self._remote.remote(spec, self.root, 1)
+        return self._remote.remote(spec, self.root)
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
         ready, _ = self._ray.wait(list(handles), num_returns=1)

@@ -252,14 +252,19 @@ _IMPLEMENTATIONS: dict[str, Callable[[StageSpec, Store, Any], None]] = {
 }
 
 
-def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) -> dict[str, Any]:
+#: Threads every stage runs with (torch intra-op *and* the BLAS/OpenMP pools), whatever the
+#: executor: the in-process executor, a pool worker and a Ray task sum in the same order, so a
+#: stage's value depends on its key alone, never on ``--workers`` or on what runs beside it.
+STAGE_THREADS = 1
+
+
+def execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     """Run ``spec`` unless its artifact exists; return a small status record.
 
-    ``torch_threads`` (set by the pool and Ray executors) pins torch *and* the BLAS/OpenMP
-    pools to that many threads: workers then do not oversubscribe the cores, and every executor
-    sums in the same order, so deterministic stages give bit-identical results everywhere.
+    The stage runs with :data:`STAGE_THREADS` torch and BLAS/OpenMP threads on every executor
+    (the previous settings come back afterwards).
     """
-    with limit_threads(torch_threads, blas=True):
+    with limit_threads(STAGE_THREADS, blas=True):
         return _execute(spec, store_root)
 
 
