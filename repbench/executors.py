@@ -262,6 +262,11 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                 if "error" in result:
                     report.failed[i] = result["error"]
                     echo(f"FAILED {report.labels[i]}: {result['error']}")
+                elif result.get("status") == "cached":  # another run computed it meanwhile
+                    report.cached.append(i)
+                    finished.add(i)
+                    echo(f"reused {report.labels[i]} (computed by another run; waited "
+                         f"{result.get('waited_s', 0.0):.1f} s)")
                 else:
                     secs = time.time() - started[i]
                     durations[spec.kind].append(secs)

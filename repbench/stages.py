@@ -304,6 +304,16 @@ def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     start = time.time()
     if store.get(spec.kind, key) is not None:
         return {"key": key, "status": "cached", "seconds": 0.0}
+    with store.lock(spec.kind, key):  # another run computing this stage: wait for it
+        if store.get(spec.kind, key) is not None:  # ... and reuse what it computed
+            return {"key": key, "status": "cached", "seconds": 0.0,
+                    "waited_s": round(time.time() - start, 1)}
+        return _compute(spec, store)
+
+
+def _compute(spec: StageSpec, store: Store) -> dict[str, Any]:
+    key = spec.key
+    start = time.time()
     # an artifact is committed only if its stage ran to the end without a Ctrl-C, whatever
     # the plugin did with the KeyboardInterrupt: raising inside ``store.write`` discards it
     with interrupts_recorded() as interrupted, store.write(

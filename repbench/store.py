@@ -6,6 +6,11 @@ SHA-256 of every file). It is built in ``<root>/.tmp/`` and appears under its fi
 ``rename``: a reader sees a complete artifact or none, even if the writer is killed with -9.
 A later reader that finds a file missing or failing its checksum reports it, moves the artifact
 aside to ``<root>/.corrupt/`` and recomputes.
+
+Two runs may share a store: a stage is computed under its lock ``<root>/<stage>/<key>.lock``
+(``fcntl.flock``, held while its artifact is written), so a second run waits for a stage the
+first is computing and then reuses it. The kernel releases the lock when its holder dies, so a
+lock left by a killed process never blocks.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import os
 import platform
 import shutil
 import subprocess
+import threading
 import time
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
@@ -28,11 +34,19 @@ from typing import Any
 
 from repbench.errors import CorruptArtifactError, StoreError
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover (Windows: no stage locks)
+    fcntl = None  # type: ignore[assignment]
+
 log = logging.getLogger(__name__)
 
 STORE_ENV_VAR = "REPBENCH_STORE"
 META = "meta.json"
 STORE_FORMAT = 1
+LOCK_SUFFIX = ".lock"
+#: stage locks this process holds: (lock path, thread id) → [file descriptor, depth]
+_HELD: dict[tuple[str, int], list[int]] = {}
 
 
 def default_store_root() -> Path:
@@ -204,13 +218,62 @@ class Store:
         arts = (self.get(stage, p.name) for p in sorted(base.iterdir()) if p.is_dir())
         return [a for a in arts if a is not None]
 
+    # -- locking ---------------------------------------------------------------------------------
+    def lock_path(self, stage: str, key: str) -> Path:
+        return self.root / stage / f"{key}{LOCK_SUFFIX}"
+
+    @contextlib.contextmanager
+    def lock(self, stage: str, key: str, *, wait: bool = True) -> Iterator[bool]:
+        """Hold the stage's lock (an exclusive ``flock`` on :meth:`lock_path`) in the block.
+
+        Yields True once held; with ``wait=False`` it yields False at once instead of waiting
+        when another process (or thread) holds it. Re-entrant within one thread. A lock held by
+        a process that died is free: the kernel drops it with the process.
+        """
+        path = self.lock_path(stage, key)
+        ident = (str(path), threading.get_ident())
+        if fcntl is None or ident in _HELD:
+            if ident in _HELD:
+                _HELD[ident][1] += 1
+            try:
+                yield True
+            finally:
+                if ident in _HELD:
+                    _HELD[ident][1] -= 1
+            return
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+            except BlockingIOError:
+                acquired = False
+            else:
+                acquired = True
+                _HELD[ident] = [fd, 1]
+            try:
+                yield acquired
+            finally:
+                _HELD.pop(ident, None)
+        finally:
+            os.close(fd)  # releases the flock
+
     # -- writing ---------------------------------------------------------------------------------
     @contextlib.contextmanager
     def write(self, stage: str, key: str, *, config: Mapping[str, Any],
               inputs: Sequence[str] = (), seeds: Mapping[str, Any] | None = None
               ) -> Iterator[ArtifactWriter]:
         """Context manager: write files into ``writer.path``; on success they are committed
-        atomically with their metadata record. On any exception nothing becomes visible."""
+        atomically with their metadata record. On any exception nothing becomes visible.
+
+        The stage's lock (:meth:`lock`) is held from the temporary folder's creation until the
+        commit."""
+        with self.lock(stage, key):
+            yield from self._write(stage, key, config=config, inputs=inputs, seeds=seeds)
+
+    def _write(self, stage: str, key: str, *, config: Mapping[str, Any],
+               inputs: Sequence[str], seeds: Mapping[str, Any] | None
+               ) -> Iterator[ArtifactWriter]:
         tmp = self.root / ".tmp" / f"{stage}-{key}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         tmp.mkdir(parents=True)
         writer = ArtifactWriter(tmp)
