@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import ctypes
 import multiprocessing as mp
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -93,12 +95,40 @@ class InProcessExecutor:
         pass
 
 
-def _init_worker() -> None:
-    """Pool worker start-up: ignore Ctrl-C (the parent stops its workers), then unblock SIGINT,
-    which the worker was started with blocked (:func:`_sigint_blocked`)."""
+def _init_worker(parent: int, death_signal: bool) -> None:
+    """Pool worker start-up: die with the parent process ``parent``; ignore Ctrl-C (the parent
+    stops its workers), then unblock SIGINT, which the worker was started with blocked
+    (:func:`_sigint_blocked`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # also discards one already pending
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    _die_with_parent(parent, death_signal)
+
+
+#: prctl option: the signal a process gets when its parent dies (Linux, <sys/prctl.h>)
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int, death_signal: bool) -> None:
+    """Make this worker exit when process ``parent`` dies, even by kill -9, so no worker
+    outlives its run (each holds hundreds of MB): on Linux the kernel sends it SIGKILL
+    (``prctl(PR_SET_PDEATHSIG)``; only when ``death_signal``: it fires when the *thread* that
+    started the worker ends, so it is asked for only when that is the parent's main thread);
+    everywhere a watchdog thread exits once the worker's parent process id changes."""
+    if death_signal and sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before this worker got here
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True,
+                     name="repbench-parent-watchdog").start()
+
+
+def _watch_parent(parent: int, interval_s: float = 1.0) -> None:
+    while os.getppid() == parent:
+        time.sleep(interval_s)
+    os._exit(1)  # orphaned: the run is gone; its temporary folder is cleaned by the next run
 
 
 @contextlib.contextmanager
@@ -125,9 +155,12 @@ class LocalPoolExecutor:
     def __init__(self, store_root: str, workers: int) -> None:
         self.root = store_root
         self.capacity = workers
+        # workers are started by submit(), in the thread that runs the stages
+        death_signal = threading.current_thread() is threading.main_thread()
         self._pool = cf.ProcessPoolExecutor(max_workers=workers,
                                             mp_context=mp.get_context("spawn"),
-                                            initializer=_init_worker)
+                                            initializer=_init_worker,
+                                            initargs=(os.getpid(), death_signal))
 
     def submit(self, spec: StageSpec) -> cf.Future[dict[str, Any]]:
         with _sigint_blocked():  # submit starts a worker process when none is idle
@@ -218,6 +251,8 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
     """Run every stage whose artifact is missing, respecting dependencies."""
     report = RunReport()
     echo = echo or tqdm.write
+    if (cleaned := store.clean_tmp()):
+        echo(f"removed {cleaned} temporary stage folders left by killed runs in {store.root}")
     by_id = {_stage_id(s): s for s in specs}
     report.labels = {i: s.label or i for i, s in by_id.items()}
     deps = {i: [f"{k}/{key}" for k, key in s.deps] for i, s in by_id.items()}

@@ -10,7 +10,8 @@ aside to ``<root>/.corrupt/`` and recomputes.
 Two runs may share a store: a stage is computed under its lock ``<root>/<stage>/<key>.lock``
 (``fcntl.flock``, held while its artifact is written), so a second run waits for a stage the
 first is computing and then reuses it. The kernel releases the lock when its holder dies, so a
-lock left by a killed process never blocks.
+lock left by a killed process never blocks. A temporary folder whose stage lock is free was left
+by a killed writer; :meth:`Store.clean_tmp` removes it (every run does, before it starts).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import json
 import logging
 import os
 import platform
+import re
 import shutil
 import subprocess
 import threading
@@ -45,6 +47,8 @@ STORE_ENV_VAR = "REPBENCH_STORE"
 META = "meta.json"
 STORE_FORMAT = 1
 LOCK_SUFFIX = ".lock"
+#: ``<stage>-<key>-<pid>-<tag>``: the name :meth:`Store.write` gives a temporary folder
+_TMP_NAME = re.compile(r"^(?P<stage>.+)-(?P<key>[^-]+)-(?P<pid>\d+)-(?P<tag>[0-9a-f]{8})$")
 #: stage locks this process holds: (lock path, thread id) → [file descriptor, depth]
 _HELD: dict[tuple[str, int], list[int]] = {}
 
@@ -267,7 +271,7 @@ class Store:
         atomically with their metadata record. On any exception nothing becomes visible.
 
         The stage's lock (:meth:`lock`) is held from the temporary folder's creation until the
-        commit."""
+        commit, so :meth:`clean_tmp` can tell a folder being written from a leftover."""
         with self.lock(stage, key):
             yield from self._write(stage, key, config=config, inputs=inputs, seeds=seeds)
 
@@ -311,13 +315,29 @@ class Store:
                 shutil.rmtree(tmp, ignore_errors=True)
 
     def clean_tmp(self, older_than_s: float = 3600.0) -> int:
-        """Remove temporary directories left by killed writers; returns how many."""
+        """Remove temporary folders left by killed writers; returns how many.
+
+        A folder :meth:`write` names is being written while its stage's lock is held, so one
+        whose lock is free is a leftover and goes at once; a folder of another name goes when
+        it is older than ``older_than_s``."""
         removed = 0
         now = time.time()
-        for p in (self.root / ".tmp").iterdir():
-            if p.is_dir() and now - p.stat().st_mtime > older_than_s:
-                shutil.rmtree(p, ignore_errors=True)
-                removed += 1
+        for p in sorted((self.root / ".tmp").iterdir()):
+            if not p.is_dir():
+                continue
+            m = _TMP_NAME.match(p.name)
+            if m is None:
+                if now - p.stat().st_mtime > older_than_s:
+                    shutil.rmtree(p, ignore_errors=True)
+                    removed += 1
+                continue
+            path = str(self.lock_path(m["stage"], m["key"]))
+            if any(held == path for held, _ in _HELD):  # this process is writing it
+                continue
+            with self.lock(m["stage"], m["key"], wait=False) as free:
+                if free and p.exists():
+                    shutil.rmtree(p, ignore_errors=True)
+                    removed += 1
         return removed
 
 
