@@ -104,13 +104,29 @@ def library_versions() -> dict[str, str]:
 
 @functools.lru_cache(maxsize=1)
 def git_commit() -> str | None:
-    """The git commit of the working directory's repository, when there is one."""
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                             timeout=5, check=False)
-    except (OSError, subprocess.SubprocessError):
+    """The git commit of the repbench code that runs: HEAD of the checkout the installed
+    ``repbench`` package lives in (a source tree or an editable install); None when it lives in
+    none (installed from a wheel). Never the commit of the folder the command runs in."""
+    return source_commit(Path(__file__).resolve().parent)
+
+
+def source_commit(package_dir: Path) -> str | None:
+    """HEAD of the git checkout that tracks ``package_dir/__init__.py``; None when no checkout
+    does (not a checkout, or an untracked folder inside someone else's, like a virtual
+    environment's site-packages inside a user's project)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("GIT_")}
+
+    def git(*args: str) -> str | None:
+        try:
+            out = subprocess.run(["git", "-C", str(package_dir), *args], capture_output=True,
+                                 text=True, timeout=5, check=False, env=env)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return out.stdout.strip() or None if out.returncode == 0 else None
+
+    if git("ls-files", "--error-unmatch", "--", "__init__.py") is None:
         return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
+    return git("rev-parse", "HEAD")
 
 
 @dataclass(frozen=True)

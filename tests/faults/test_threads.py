@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
-from repbench.store import Store
+from repbench.store import Store, git_commit
 
 from .conftest import Cli, fault_suite
 
@@ -42,3 +43,7 @@ def test_stage_values_and_threads_are_the_same_with_1_and_2_workers(cli: Cli) ->
         assert b is not None
         with np.load(a.file("latents.npz")) as za, np.load(b.file("latents.npz")) as zb:
             np.testing.assert_array_equal(za["z"], zb["z"])
+    # run from a folder outside the checkout: the records still name repbench's commit
+    commits = {json.loads(p.read_text())["git_commit"]
+               for p in (cli.cwd / "store2").glob("*/*/record.json")}
+    assert commits == {git_commit()} and git_commit() is not None
