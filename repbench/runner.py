@@ -69,15 +69,24 @@ def collect_results(plan: Plan, store: Store, extra_records: list[dict] | None =
     """The records of ``plan``'s stages in ``store`` (selected by identity, so records of an
     older plugin version are found and shown stale), plus ``extra_records``, as
     :class:`Results`. Stages with no record are listed in ``missing``."""
+    problems: list[str] = []  # records left out (edited, truncated ...), shown on the page
+    records = [*load_records(store, problems=problems), *(extra_records or [])]
+    return results_of(plan, records, problems)
+
+
+def results_of(plan: Plan, records: list[dict], problems: list[str] | None = None) -> Results:
+    """:class:`Results` of ``plan`` from ``records`` (one per stage identity; stages with none
+    listed in ``missing``); ``problems`` (records left out) become the page's warnings."""
     wanted = {identity_key(s.record): s for s in plan.stages() if s.record is not None}
-    records = [*load_records(store), *(extra_records or [])]
     installed = installed_versions(records)
     chosen = select(records, wanted, installed)
     found = {r["identity"] for r in chosen}
     missing = [s.label for i, s in wanted.items() if i not in found and s.kind in _SHOWN]
     order = {i: n for n, i in enumerate(wanted)}
     chosen.sort(key=lambda r: order.get(r["identity"], len(order)))
-    return build_results(chosen, suite=plan.suite, missing=missing, installed=installed)
+    results = build_results(chosen, suite=plan.suite, missing=missing, installed=installed)
+    results.warnings.extend(problems or [])
+    return results
 
 
 def check_workers(workers: int | None) -> None:
@@ -97,9 +106,11 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     """
     s = load_suite(suite)
     if records is not None:
-        found = load_records(records)
+        problems: list[str] = []
+        found = load_records(records, problems=problems)
         installed = installed_versions(found)
         results = build_results(select(found, None, installed), suite=s, installed=installed)
+        results.warnings.extend(problems)
         where = f"records folder {records}"
     else:
         st = Store(store)
