@@ -26,6 +26,7 @@ from repbench.plan import build_plan
 from repbench.records import identity_key
 from repbench.registry import encoders
 from repbench.results import Results, build_results, installed_versions, load_records, select
+from repbench.runner import records_of_suite
 from repbench.stages import RL
 from repbench.store import Store
 from repbench.suite import load_suite
@@ -75,6 +76,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     reference_records = load_records(ref_dir, problems=dropped)
     if not reference_records:
         raise ConfigError(f"no readable records in {ref_dir}")
+    reference_records = records_of_suite(reference_records, base, ref_dir,
+                                         what="reference records folder")
     one = base.model_copy(update={
         "encoders": [encoder],
         "encoder_params": {encoder: base.encoder_params.get(encoder, {})}})

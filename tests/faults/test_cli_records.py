@@ -1,13 +1,16 @@
-"""The command line names every record it leaves out."""
+"""The command line names every record it leaves out, and refuses records of another suite."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from repbench.runner import run_suite
 
 from ..runner.tiny_toy_suite import tiny_toy_suite
 from .conftest import Cli
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_leaderboard_prints_a_line_per_record_left_out(cli: Cli) -> None:
@@ -31,3 +34,23 @@ def test_leaderboard_prints_a_line_per_record_left_out(cli: Cli) -> None:
         "stage with `repbench run`"])
     assert "Traceback" not in proc.stderr
 
+
+def test_records_of_another_suite_exit_2_with_one_line(cli: Cli) -> None:
+    quick = ROOT / "leaderboards" / "quick" / "records"
+    proc = cli.run("leaderboard", "--suite", "smoke", "--records", str(quick), "--out",
+                   str(cli.cwd / "out"))
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.splitlines() == [
+        f"repbench: error: the records in records folder {quick} belong to suite 'quick' (373 "
+        "of their 373 stages), not to suite 'smoke' that was asked for; pass --suite quick, or "
+        "the records of suite smoke"]
+    assert not (cli.cwd / "out").exists()
+    smoke = ROOT / "leaderboards" / "smoke" / "records"
+    proc = cli.run("evaluate", "pca", "--suite", "quick", "--metrics-only", "--reference",
+                   str(smoke), "--store", str(cli.cwd / "store"), "--out", str(cli.cwd / "ev"))
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.splitlines() == [
+        f"repbench: error: the records in reference records folder {smoke} belong to suite "
+        "'smoke' (125 of their 125 stages), not to suite 'quick' that was asked for; pass "
+        "--suite smoke, or the records of suite quick"]
+    assert not (cli.cwd / "store").exists()

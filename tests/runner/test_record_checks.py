@@ -11,6 +11,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from repbench.errors import ConfigError
 from repbench.records import CHECKSUM, SCHEMA_VERSION, inspect_record, record_checksum
 from repbench.runner import rebuild_leaderboards, run_suite
 
@@ -130,3 +131,33 @@ def test_shipped_reference_records_pass_their_checks(suite: str,
         assert problem is None and record is not None, problem
         assert record[CHECKSUM] == record_checksum(record)
 
+
+def test_records_of_another_suite_are_refused(finished: tuple[Path, Path, Path],
+                                              tmp_path: Path) -> None:
+    _, _, lb = finished
+    other = tmp_path / "toyother.toml"
+    other.write_text(tiny_toy_suite("toyother", ["oracle", "pca"]).replace(
+        "random_episodes = 3", "random_episodes = 4"))
+    with pytest.raises(ConfigError, match=r"^the records in records folder .* belong to suite "
+                       r"'toycheck', not to suite 'toyother' that was asked for; pass --suite "
+                       r"toycheck, or the records of suite toyother$"):
+        rebuild_leaderboards(other, records=lb / "records", out=tmp_path / "out")
+    with pytest.raises(ConfigError, match=r"belong to suite 'quick' \(373 of their 373 "
+                       r"stages\), not to suite 'smoke' that was asked for"):
+        rebuild_leaderboards("smoke", records=ROOT / "leaderboards" / "quick" / "records",
+                             out=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_records_beyond_the_suite_are_left_out_by_count(finished: tuple[Path, Path, Path],
+                                                        tmp_path: Path,
+                                                        caplog: pytest.LogCaptureFixture) -> None:
+    _, _, lb = finished
+    fewer = tmp_path / "toyfewer.toml"
+    fewer.write_text(tiny_toy_suite("toyfewer", ["oracle"]))
+    with caplog.at_level(logging.WARNING):
+        rebuild_leaderboards(fewer, records=lb / "records", out=tmp_path / "out")
+    assert f"5 of the 12 records in records folder {lb / 'records'} are not stages of suite " \
+           "'toyfewer': left out" in caplog.text
+    enc = pd.read_csv(tmp_path / "out" / "encoders.csv")
+    assert list(enc["encoder"]) == ["oracle"]
