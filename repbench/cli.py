@@ -165,9 +165,29 @@ def main(argv: list[str] | None = None) -> None:
         typer.echo(f"repbench: error: {exc}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        typer.echo("repbench: interrupted; finished stages are kept in the store — run the "
-                   "same command again to resume", err=True)
-        sys.exit(130)
+        _interrupted()
+    except SystemExit as exc:  # typer turns Ctrl-C inside a command into a silent Exit(130)
+        if _caused_by_ctrl_c(exc):
+            _interrupted()
+        raise
+
+
+def _interrupted() -> None:
+    typer.echo("repbench: interrupted; finished stages are kept in the store — run the "
+               "same command again to resume", err=True)
+    sys.exit(130)
+
+
+def _caused_by_ctrl_c(exc: BaseException) -> bool:
+    """True when a KeyboardInterrupt is among the causes or contexts of ``exc``."""
+    seen: BaseException | None = exc
+    for _ in range(10):
+        if seen is None:
+            return False
+        if isinstance(seen, KeyboardInterrupt):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -33,14 +33,20 @@ def resolve_device(device: str) -> str:
 def torch_threads(n: int | None, *, blas: bool = False) -> Iterator[None]:
     """Use ``n`` torch intra-op threads inside the block (``None``: leave settings alone).
 
-    ``blas=True`` also limits the BLAS/OpenMP thread pools (threadpoolctl), as the process-pool
-    and Ray executors do: workers then do not oversubscribe the cores, and every executor sums
-    in the same order, so deterministic stages give bit-identical results everywhere.
+    ``blas=True`` also limits the BLAS/OpenMP thread pools (threadpoolctl), as every executor
+    does around a stage (:data:`repbench.stages.STAGE_THREADS`): workers then do not
+    oversubscribe the cores, and every executor sums in the same order, so deterministic stages
+    give bit-identical results everywhere. threadpoolctl only reaches libraries already loaded,
+    so the ones repbench's stages use (numpy's and scipy's BLAS, scikit-learn's and torch's
+    OpenMP) are loaded first: a library loaded inside the block would keep its default.
     """
     if n is None:
         yield
         return
     import torch
+
+    if blas:
+        _load_thread_pools()
 
     before = torch.get_num_threads()
     torch.set_num_threads(int(n))
@@ -54,3 +60,12 @@ def torch_threads(n: int | None, *, blas: bool = False) -> Iterator[None]:
             yield
     finally:
         torch.set_num_threads(before)
+
+
+def _load_thread_pools() -> None:
+    """Import the native libraries with their own thread pools (see :func:`torch_threads`)."""
+    import importlib
+
+    for module in ("numpy", "scipy.linalg", "sklearn.utils._openmp_helpers"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(module)

@@ -26,6 +26,7 @@ from repbench.plan import build_plan
 from repbench.records import identity_key
 from repbench.registry import encoders
 from repbench.results import Results, build_results, installed_versions, load_records, select
+from repbench.runner import records_of_suite
 from repbench.stages import RL
 from repbench.store import Store
 from repbench.suite import load_suite
@@ -71,9 +72,12 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
         raise ConfigError(encoders._unknown_message(encoder))
     base = load_suite(suite)
     ref_dir = reference_dir(base.name, reference)
-    reference_records = load_records(ref_dir)
+    dropped: list[str] = []  # reference or new records left out (edited, truncated ...)
+    reference_records = load_records(ref_dir, problems=dropped)
     if not reference_records:
         raise ConfigError(f"no readable records in {ref_dir}")
+    reference_records = records_of_suite(reference_records, base, ref_dir,
+                                         what="reference records folder")
     one = base.model_copy(update={
         "encoders": [encoder],
         "encoder_params": {encoder: base.encoder_params.get(encoder, {})}})
@@ -88,7 +92,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     print(f"stages: {report.summary()}", flush=True)
 
     wanted = {identity_key(s.record): s for s in stages if s.record is not None}
-    new_records = select(load_records(st), wanted)
+    new_records = select(load_records(st, problems=dropped), wanted)
     ours = [r for r in new_records if (r.get("encoder") or {}).get("name") == encoder]
     shared = [r for r in new_records if not r.get("encoder")]  # datasets, diagnostics, agent
     warnings = _compare_data(ours + shared, reference_records)
@@ -100,7 +104,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
                                  if s.kind in ("encoder", "metric", "rl")
                                  and i not in {r["identity"] for r in ours}])
     res.highlight = [encoder]
-    res.warnings = warnings
+    res.warnings = [*dropped, *warnings]
     res.provenance["evaluated"] = {"encoder": encoder, "metrics_only": metrics_only,
                                    "reference_records": str(ref_dir),
                                    "n_reference_records": len(reference_records)}

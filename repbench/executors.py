@@ -3,17 +3,28 @@
 All three call the same :func:`repbench.stages.execute`, so a deterministic stage gives the same
 artifact wherever it runs. The scheduler submits a stage as soon as its inputs exist; a failed
 stage is reported and its dependants are skipped, the rest of the suite still runs.
+
+Ctrl-C: pool workers ignore SIGINT (they start with it blocked, so not even a Ctrl-C during
+their start-up reaches them); the parent gets the KeyboardInterrupt, kills its workers (their
+running stages are never committed) and re-raises it, so the command line prints its
+one-line "interrupted" message. In-process, :func:`repbench.stages.execute` itself makes sure an
+interrupted stage is not committed.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
+import ctypes
 import multiprocessing as mp
 import os
+import signal
+import sys
+import threading
 import time
 import traceback
 from collections import defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -46,15 +57,16 @@ class Executor(Protocol):
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, dict[str, Any] | BaseException]]:
         ...
     def shutdown(self) -> None: ...
+    def abort(self) -> None: ...
 
 
 def _stage_id(spec: StageSpec) -> str:
     return f"{spec.kind}/{spec.key}"
 
 
-def _execute_catching(spec: StageSpec, root: str, threads: int | None) -> dict[str, Any]:
+def _execute_catching(spec: StageSpec, root: str) -> dict[str, Any]:
     try:
-        return execute(spec, root, threads)
+        return execute(spec, root)
     except Exception as exc:  # shipped back as data: exceptions from plugins may not pickle
         return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
 
@@ -70,7 +82,7 @@ class InProcessExecutor:
 
     def submit(self, spec: StageSpec) -> int:
         handle = len(self._results)
-        self._results[handle] = _execute_catching(spec, self.root, None)
+        self._results[handle] = _execute_catching(spec, self.root)
         return handle
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
@@ -79,18 +91,80 @@ class InProcessExecutor:
     def shutdown(self) -> None:
         pass
 
+    def abort(self) -> None:
+        pass
+
+
+def _init_worker(parent: int, death_signal: bool) -> None:
+    """Pool worker start-up: die with the parent process ``parent``; ignore Ctrl-C (the parent
+    stops its workers), then unblock SIGINT, which the worker was started with blocked
+    (:func:`_sigint_blocked`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # also discards one already pending
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    _die_with_parent(parent, death_signal)
+
+
+#: prctl option: the signal a process gets when its parent dies (Linux, <sys/prctl.h>)
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int, death_signal: bool) -> None:
+    """Make this worker exit when process ``parent`` dies, even by kill -9, so no worker
+    outlives its run (each holds hundreds of MB): on Linux the kernel sends it SIGKILL
+    (``prctl(PR_SET_PDEATHSIG)``; only when ``death_signal``: it fires when the *thread* that
+    started the worker ends, so it is asked for only when that is the parent's main thread);
+    everywhere a watchdog thread exits once the worker's parent process id changes."""
+    if death_signal and sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before this worker got here
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True,
+                     name="repbench-parent-watchdog").start()
+
+
+def _watch_parent(parent: int, interval_s: float = 1.0) -> None:
+    while os.getppid() == parent:
+        time.sleep(interval_s)
+    os._exit(1)  # orphaned: the run is gone; its temporary folder is cleaned by the next run
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """Block SIGINT in this thread while worker processes are started: they inherit the mask,
+    so a Ctrl-C before their initializer runs stays pending there and is then discarded
+    (:func:`_init_worker`). This process still gets it: another of its threads takes it, or
+    it is delivered when the block ends."""
+    if (not hasattr(signal, "pthread_sigmask")
+            or threading.current_thread() is not threading.main_thread()):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
 
 class LocalPoolExecutor:
-    """A process pool sized to the machine (spawned workers, one torch thread each)."""
+    """A process pool sized to the machine (spawned workers; every stage, here as everywhere,
+    runs with :data:`repbench.stages.STAGE_THREADS` threads)."""
 
     def __init__(self, store_root: str, workers: int) -> None:
         self.root = store_root
         self.capacity = workers
+        # workers are started by submit(), in the thread that runs the stages
+        death_signal = threading.current_thread() is threading.main_thread()
         self._pool = cf.ProcessPoolExecutor(max_workers=workers,
-                                            mp_context=mp.get_context("spawn"))
+                                            mp_context=mp.get_context("spawn"),
+                                            initializer=_init_worker,
+                                            initargs=(os.getpid(), death_signal))
 
     def submit(self, spec: StageSpec) -> cf.Future[dict[str, Any]]:
-        return self._pool.submit(_execute_catching, spec, self.root, 1)
+        with _sigint_blocked():  # submit starts a worker process when none is idle
+            return self._pool.submit(_execute_catching, spec, self.root)
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
         done, _ = cf.wait(list(handles), return_when=cf.FIRST_COMPLETED)
@@ -104,6 +178,19 @@ class LocalPoolExecutor:
 
     def shutdown(self) -> None:
         self._pool.shutdown(wait=False, cancel_futures=True)
+
+    def abort(self) -> None:
+        """Stop at once (Ctrl-C): kill the workers, so no running stage is committed."""
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        for p in processes:
+            with contextlib.suppress(OSError, ValueError):
+                p.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for p in processes:
+            with contextlib.suppress(OSError, ValueError, AssertionError):
+                p.join(timeout=5)
+                if p.is_alive():
+                    p.kill()
 
 
 class RayExecutor:
@@ -127,7 +214,7 @@ class RayExecutor:
         self._remote = ray.remote(num_cpus=1, max_retries=1)(_execute_catching)
 
     def submit(self, spec: StageSpec) -> Any:
-        return self._remote.remote(spec, self.root, 1)
+        return self._remote.remote(spec, self.root)
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
         ready, _ = self._ray.wait(list(handles), num_returns=1)
@@ -140,6 +227,9 @@ class RayExecutor:
         return out
 
     def shutdown(self) -> None:
+        pass
+
+    def abort(self) -> None:
         pass
 
 
@@ -161,6 +251,8 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
     """Run every stage whose artifact is missing, respecting dependencies."""
     report = RunReport()
     echo = echo or tqdm.write
+    if (cleaned := store.clean_tmp()):
+        echo(f"removed {cleaned} temporary stage folders left by killed runs in {store.root}")
     by_id = {_stage_id(s): s for s in specs}
     report.labels = {i: s.label or i for i, s in by_id.items()}
     deps = {i: [f"{k}/{key}" for k, key in s.deps] for i, s in by_id.items()}
@@ -205,6 +297,11 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                 if "error" in result:
                     report.failed[i] = result["error"]
                     echo(f"FAILED {report.labels[i]}: {result['error']}")
+                elif result.get("status") == "cached":  # another run computed it meanwhile
+                    report.cached.append(i)
+                    finished.add(i)
+                    echo(f"reused {report.labels[i]} (computed by another run; waited "
+                         f"{result.get('waited_s', 0.0):.1f} s)")
                 else:
                     secs = time.time() - started[i]
                     durations[spec.kind].append(secs)
@@ -214,9 +311,12 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                 bar.update(1)
             bar.set_postfix_str(_status(running, by_id, todo, durations, executor.capacity),
                                 refresh=True)
-    finally:
+    except BaseException:  # Ctrl-C (KeyboardInterrupt) or a bug: stop the running stages
         bar.close()
-        executor.shutdown()
+        executor.abort()
+        raise
+    bar.close()
+    executor.shutdown()
     return report
 
 

@@ -14,7 +14,12 @@ or the code that made it:
 * ``values`` — the result: a metric's value with its interval (``ci_low``, ``ci_high``); an RL
   run's evaluation return, success rate, per-episode returns and learning curve; an encoder's
   latent size and fit time;
-* ``timings``, ``library_versions``, ``git_commit``, ``created``, ``stage`` (kind, key, inputs).
+* ``timings``, ``library_versions``, ``git_commit``, ``created``, ``stage`` (kind, key, inputs);
+* ``checksum`` — SHA-256 of the record's canonical JSON without this field
+  (:func:`record_checksum`; schema version 2 on). Every reader checks it
+  (:func:`inspect_record`): an edited or damaged record is left out with a one-line warning,
+  never published. Records of schema version 1 have none; inside a stage store the store's own
+  file checksums cover them.
 
 **Identity and versions (the rule).** A record's *identity* is everything above that says what
 was computed — task, data, encoder, metric/agent with their parameters, seed, budget — *without*
@@ -38,8 +43,12 @@ from typing import Any
 from repbench.store import git_commit, library_versions
 
 SCHEMA = "repbench.record"
-SCHEMA_VERSION = 1
+#: 2: records carry their own ``checksum``; 1 (still read): without it
+SCHEMA_VERSION = 2
 RECORD_FILE = "record.json"
+CHECKSUM = "checksum"
+#: What to do about a record a reader leaves out (appended to its warning).
+RERUN = "rerun the stage with `repbench run`"
 
 #: The parts of a record that carry a plugin ``{"name", "version", "params"}``.
 PLUGIN_PARTS = ("task", "encoder", "metric", "agent")
@@ -97,22 +106,61 @@ def make_record(context: Mapping[str, Any], values: Mapping[str, Any], *,
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "stage": jsonable(dict(stage)),
     })
+    record[CHECKSUM] = record_checksum(record)
     return record
+
+
+def record_checksum(record: Mapping[str, Any]) -> str:
+    """SHA-256 of ``record``'s canonical JSON (sorted keys, no whitespace), leaving out the
+    ``checksum`` field itself and in-memory fields (names starting with ``_``)."""
+    clean = {k: v for k, v in record.items() if k != CHECKSUM and not k.startswith("_")}
+    payload = json.dumps(clean, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(payload.encode()).hexdigest()
+
+
+def inspect_record(path: str | Path) -> tuple[dict[str, Any] | None, str | None]:
+    """Read the record in ``path``: ``(record, None)`` when it is sound; ``(None, why)`` when
+    it is damaged, edited or unreadable (``why`` is the one-line warning, naming the file and
+    what to do); ``(None, None)`` for a JSON file that is no repbench record."""
+    try:
+        with open(path) as f:
+            text = f.read()
+    except OSError as exc:
+        return None, f"record {path} cannot be read ({exc.strerror or exc}): left out; {RERUN}"
+    try:
+        record = json.loads(text)
+    except json.JSONDecodeError:
+        return None, (f"record {path} is not valid JSON (truncated or corrupt): left out; "
+                      f"{RERUN}")
+    if not isinstance(record, dict) or record.get("schema") != SCHEMA:
+        return None, None
+    try:
+        version = int(record.get("schema_version", 0))
+    except (TypeError, ValueError):
+        version = -1
+    if version > SCHEMA_VERSION:
+        return None, (f"record {path} has record schema {version}, this repbench reads up to "
+                      f"{SCHEMA_VERSION}: left out; upgrade repbench to read it")
+    if version >= 2 and not _checksum_matches(record):
+        return None, (f"record {path} fails its checksum (edited or corrupt): left out; "
+                      f"{RERUN}")
+    if version < 1:
+        return None, f"record {path} has no valid schema_version: left out; {RERUN}"
+    record["_path"] = str(path)
+    return record, None
+
+
+def _checksum_matches(record: Mapping[str, Any]) -> bool:
+    try:
+        return record.get(CHECKSUM) == record_checksum(record)
+    except (TypeError, ValueError):  # NaN or another value no record holds
+        return False
 
 
 def read_record(path: str | Path) -> dict[str, Any] | None:
-    """The record in ``path``, or None if it is not a readable repbench record."""
-    try:
-        with open(path) as f:
-            record = json.load(f)
-    except (OSError, json.JSONDecodeError):
-        return None
-    if not isinstance(record, dict) or record.get("schema") != SCHEMA:
-        return None
-    if int(record.get("schema_version", 0)) > SCHEMA_VERSION:
-        return None  # written by a newer repbench; this one cannot interpret it
-    record["_path"] = str(path)
-    return record
+    """The record in ``path``, or None if it is not a sound repbench record
+    (:func:`inspect_record` says why)."""
+    return inspect_record(path)[0]
 
 
 def write_record(record: Mapping[str, Any], path: str | Path) -> Path:

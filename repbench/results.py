@@ -10,15 +10,27 @@ versions, to mark older records *stale*). The leaderboard tables and pages are c
 
 from __future__ import annotations
 
+import json
+import logging
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from repbench.errors import RepbenchError
-from repbench.records import PLUGIN_PARTS, RECORD_FILE, plugin_version, read_record, versions_of
+from repbench.records import (
+    CHECKSUM,
+    PLUGIN_PARTS,
+    RECORD_FILE,
+    RERUN,
+    inspect_record,
+    plugin_version,
+    versions_of,
+)
 from repbench.registry import REGISTRIES
-from repbench.store import Store
+from repbench.store import META, Store, file_sha256
+
+log = logging.getLogger(__name__)
 
 #: Stage kinds whose records the leaderboard reads.
 RECORD_KINDS = ("dataset", "full_state_agent", "diagnostics", "encoder", "latents", "metric",
@@ -56,23 +68,57 @@ class Results:
 
 # -- reading --------------------------------------------------------------------------------------
 
-def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS) -> list[dict[str, Any]]:
-    """Every readable record in ``sources``: a :class:`repbench.store.Store`, a store root, or a
-    folder of record JSON files (searched recursively)."""
+def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS,
+                 problems: list[str] | None = None) -> list[dict[str, Any]]:
+    """Every sound record in ``sources``: a :class:`repbench.store.Store`, a store root, or a
+    folder of record JSON files (searched recursively).
+
+    Each record is checked (:func:`repbench.records.inspect_record`: valid JSON, its own
+    checksum; in a store also the checksum the artifact's ``meta.json`` holds for it). A record
+    that fails is left out with a one-line warning naming the file and why (logged, and
+    appended to ``problems`` when given), never published.
+    """
     out: list[dict[str, Any]] = []
     kinds = tuple(kinds)
     for source in sources:
         root = source.root if isinstance(source, Store) else Path(source)
-        if isinstance(source, Store) or (root / ".tmp").is_dir():  # a stage store
+        in_store = isinstance(source, Store) or (root / ".tmp").is_dir()
+        if in_store:  # a stage store
             paths: Iterable[Path] = (p for k in kinds for p in sorted((root / k).glob(
                 f"*/{RECORD_FILE}")))
         else:
             paths = sorted(root.rglob("*.json")) if root.is_dir() else []
+        unchecked = 0
         for path in paths:
-            record = read_record(path)
+            record, problem = inspect_record(path)
+            if problem is None and record is not None and in_store:
+                problem = _store_problem(path)
+            if problem is not None:
+                log.warning("%s", problem)
+                if problems is not None:
+                    problems.append(problem)
+                continue
             if record is not None and record.get("kind") in kinds:
                 out.append(record)
+                unchecked += CHECKSUM not in record and not in_store
+        if unchecked:
+            log.warning("%d records in %s carry no checksum (record schema 1, written before "
+                        "records had one): read unchecked", unchecked, root)
     return out
+
+
+def _store_problem(path: Path) -> str | None:
+    """Why the record file ``path`` of a stored artifact fails the checksum its artifact's
+    ``meta.json`` holds for it (None: it passes)."""
+    meta_path = path.parent / META
+    try:
+        digest = json.loads(meta_path.read_text()).get("files", {}).get(path.name)
+    except (OSError, ValueError, AttributeError):
+        return (f"record {path} belongs to an artifact without a readable {META}: left out; "
+                f"{RERUN}")
+    if digest != file_sha256(path):
+        return f"record {path} fails its checksum (edited or corrupt): left out; {RERUN}"
+    return None
 
 
 def installed_versions(records: Iterable[Mapping[str, Any]]) -> dict[tuple[str, str], int]:

@@ -3,6 +3,8 @@ leaderboards."""
 
 from __future__ import annotations
 
+import json
+import logging
 import os
 import time
 from dataclasses import dataclass
@@ -15,7 +17,9 @@ from repbench.plan import Plan, build_plan
 from repbench.records import identity_key
 from repbench.results import Results, build_results, installed_versions, load_records, select
 from repbench.store import Store
-from repbench.suite import load_suite
+from repbench.suite import BUILTIN_SUITES, Suite, load_suite
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -69,15 +73,90 @@ def collect_results(plan: Plan, store: Store, extra_records: list[dict] | None =
     """The records of ``plan``'s stages in ``store`` (selected by identity, so records of an
     older plugin version are found and shown stale), plus ``extra_records``, as
     :class:`Results`. Stages with no record are listed in ``missing``."""
+    problems: list[str] = []  # records left out (edited, truncated ...), shown on the page
+    records = [*load_records(store, problems=problems), *(extra_records or [])]
+    return results_of(plan, records, problems)
+
+
+def results_of(plan: Plan, records: list[dict], problems: list[str] | None = None) -> Results:
+    """:class:`Results` of ``plan`` from ``records`` (one per stage identity; stages with none
+    listed in ``missing``); ``problems`` (records left out) become the page's warnings."""
     wanted = {identity_key(s.record): s for s in plan.stages() if s.record is not None}
-    records = [*load_records(store), *(extra_records or [])]
     installed = installed_versions(records)
     chosen = select(records, wanted, installed)
     found = {r["identity"] for r in chosen}
     missing = [s.label for i, s in wanted.items() if i not in found and s.kind in _SHOWN]
     order = {i: n for n, i in enumerate(wanted)}
     chosen.sort(key=lambda r: order.get(r["identity"], len(order)))
-    return build_results(chosen, suite=plan.suite, missing=missing, installed=installed)
+    results = build_results(chosen, suite=plan.suite, missing=missing, installed=installed)
+    results.warnings.extend(problems or [])
+    return results
+
+
+def plan_identities(suite: Suite) -> set[str]:
+    """The record identities of every stage of ``suite``."""
+    return {identity_key(s.record) for s in build_plan(suite).stages() if s.record is not None}
+
+
+def records_of_suite(records: list[dict], suite: Suite, folder: str | Path,
+                     what: str = "records folder") -> list[dict]:
+    """The records among ``records`` (read from ``folder``) that are stages of ``suite``.
+
+    Raises ConfigError (one line, naming the suite they belong to and the one asked for) when
+    they are the records of another suite: another built-in suite (or the one their
+    leaderboard's ``provenance.json`` names) has more of them among its stages, or ``suite``
+    has none. Records that are not stages of ``suite`` are otherwise left out with a warning.
+    """
+    wanted = plan_identities(suite)
+    ours = [r for r in records if r.get("identity") in wanted]
+    if len(ours) == len(records):
+        return ours
+    where = f"{what} {folder}"
+    owner, n_owner = _owner_suite(records, exclude=suite.name)
+    if owner is None:
+        owner, n_owner = _provenance_suite(Path(folder)), 0
+    if owner is not None and owner != suite.name and (n_owner > len(ours) or not ours):
+        count = f" ({n_owner} of their {len(records)} stages)" if n_owner else ""
+        raise ConfigError(
+            f"the records in {where} belong to suite {owner!r}{count}, not to suite "
+            f"{suite.name!r} that was asked for; pass --suite {owner}, or the records of suite "
+            f"{suite.name}")
+    if not ours:
+        raise ConfigError(
+            f"none of the {len(records)} records in {where} is a stage of suite {suite.name!r} "
+            "as it is now (nor of another built-in suite): they were made with another suite "
+            "or an older version of this one; pass --suite with the suite file they were made "
+            "with")
+    log.warning("%d of the %d records in %s are not stages of suite %r: left out",
+                len(records) - len(ours), len(records), where, suite.name)
+    return ours
+
+
+def _owner_suite(records: list[dict], exclude: str) -> tuple[str | None, int]:
+    """The built-in suite (other than ``exclude``) with the most of ``records`` among its
+    stages, and how many; (None, 0) when none has any."""
+    best: tuple[str | None, int] = (None, 0)
+    identities = [r.get("identity") for r in records]
+    for name in BUILTIN_SUITES:
+        if name == exclude:
+            continue
+        try:
+            theirs = plan_identities(load_suite(name))
+        except RepbenchError:  # a built-in suite whose plugins are not installed
+            continue
+        n = sum(i in theirs for i in identities)
+        if n > best[1]:
+            best = (name, n)
+    return best
+
+
+def _provenance_suite(folder: Path) -> str | None:
+    """The suite the ``provenance.json`` beside a leaderboard's records folder names, if any."""
+    try:
+        name = json.loads((folder.parent / "provenance.json").read_text()).get("suite")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return name if isinstance(name, str) and name else None
 
 
 def check_workers(workers: int | None) -> None:
@@ -97,10 +176,10 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     """
     s = load_suite(suite)
     if records is not None:
-        found = load_records(records)
-        installed = installed_versions(found)
-        results = build_results(select(found, None, installed), suite=s, installed=installed)
         where = f"records folder {records}"
+        problems: list[str] = []
+        found = records_of_suite(load_records(records, problems=problems), s, records)
+        results = results_of(build_plan(s), found, problems)
     else:
         st = Store(store)
         results = collect_results(build_plan(s), st)

@@ -8,9 +8,12 @@ redoes nothing that finished.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import signal
+import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -249,15 +252,50 @@ _IMPLEMENTATIONS: dict[str, Callable[[StageSpec, Store, Any], None]] = {
 }
 
 
-def execute(spec: StageSpec, store_root: str, torch_threads: int | None = None) -> dict[str, Any]:
+#: Threads every stage runs with (torch intra-op *and* the BLAS/OpenMP pools), whatever the
+#: executor: the in-process executor, a pool worker and a Ray task sum in the same order, so a
+#: stage's value depends on its key alone, never on ``--workers`` or on what runs beside it.
+STAGE_THREADS = 1
+
+
+def execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     """Run ``spec`` unless its artifact exists; return a small status record.
 
-    ``torch_threads`` (set by the pool and Ray executors) pins torch *and* the BLAS/OpenMP
-    pools to that many threads: workers then do not oversubscribe the cores, and every executor
-    sums in the same order, so deterministic stages give bit-identical results everywhere.
+    The stage runs with :data:`STAGE_THREADS` torch and BLAS/OpenMP threads on every executor
+    (the previous settings come back afterwards).
     """
-    with limit_threads(torch_threads, blas=True):
+    with limit_threads(STAGE_THREADS, blas=True):
         return _execute(spec, store_root)
+
+
+@contextlib.contextmanager
+def interrupts_recorded() -> Iterator[list[int]]:
+    """Inside the block Ctrl-C (SIGINT) raises KeyboardInterrupt as usual *and* is recorded in
+    the list the block receives, so a stage is known to be interrupted even when a library
+    swallowed the exception and carried on (scikit-learn's MLP ``fit`` catches it and returns
+    a half-trained model). The previous handler comes back afterwards.
+
+    Nothing is installed outside the main thread (Python allows handlers only there) or where
+    SIGINT is ignored (pool workers: their parent stops them, :mod:`repbench.executors`).
+    """
+    seen: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield seen
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN:
+        yield seen
+        return
+
+    def record(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, record)
+    try:
+        yield seen
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
@@ -266,14 +304,28 @@ def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     start = time.time()
     if store.get(spec.kind, key) is not None:
         return {"key": key, "status": "cached", "seconds": 0.0}
-    with store.write(spec.kind, key, config=spec.config,
-                     inputs=[k for _, k in spec.inputs.values()],
-                     seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
+    with store.lock(spec.kind, key):  # another run computing this stage: wait for it
+        if store.get(spec.kind, key) is not None:  # ... and reuse what it computed
+            return {"key": key, "status": "cached", "seconds": 0.0,
+                    "waited_s": round(time.time() - start, 1)}
+        return _compute(spec, store)
+
+
+def _compute(spec: StageSpec, store: Store) -> dict[str, Any]:
+    key = spec.key
+    start = time.time()
+    # an artifact is committed only if its stage ran to the end without a Ctrl-C, whatever
+    # the plugin did with the KeyboardInterrupt: raising inside ``store.write`` discards it
+    with interrupts_recorded() as interrupted, store.write(
+            spec.kind, key, config=spec.config, inputs=[k for _, k in spec.inputs.values()],
+            seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
         cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)
         if spec.record is not None:
             _write_record(spec, store, writer, time.time() - start, time.process_time() - cpu)
+        if interrupted:
+            raise KeyboardInterrupt(f"stage {spec.label or key} was interrupted")
     return {"key": key, "status": "done", "seconds": time.time() - start}
 
 

@@ -6,6 +6,12 @@ SHA-256 of every file). It is built in ``<root>/.tmp/`` and appears under its fi
 ``rename``: a reader sees a complete artifact or none, even if the writer is killed with -9.
 A later reader that finds a file missing or failing its checksum reports it, moves the artifact
 aside to ``<root>/.corrupt/`` and recomputes.
+
+Two runs may share a store: a stage is computed under its lock ``<root>/<stage>/<key>.lock``
+(``fcntl.flock``, held while its artifact is written), so a second run waits for a stage the
+first is computing and then reuses it. The kernel releases the lock when its holder dies, so a
+lock left by a killed process never blocks. A temporary folder whose stage lock is free was left
+by a killed writer; :meth:`Store.clean_tmp` removes it (every run does, before it starts).
 """
 
 from __future__ import annotations
@@ -17,8 +23,10 @@ import json
 import logging
 import os
 import platform
+import re
 import shutil
 import subprocess
+import threading
 import time
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
@@ -28,11 +36,21 @@ from typing import Any
 
 from repbench.errors import CorruptArtifactError, StoreError
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover (Windows: no stage locks)
+    fcntl = None  # type: ignore[assignment]
+
 log = logging.getLogger(__name__)
 
 STORE_ENV_VAR = "REPBENCH_STORE"
 META = "meta.json"
 STORE_FORMAT = 1
+LOCK_SUFFIX = ".lock"
+#: ``<stage>-<key>-<pid>-<tag>``: the name :meth:`Store.write` gives a temporary folder
+_TMP_NAME = re.compile(r"^(?P<stage>.+)-(?P<key>[^-]+)-(?P<pid>\d+)-(?P<tag>[0-9a-f]{8})$")
+#: stage locks this process holds: (lock path, thread id) → [file descriptor, depth]
+_HELD: dict[tuple[str, int], list[int]] = {}
 
 
 def default_store_root() -> Path:
@@ -86,13 +104,29 @@ def library_versions() -> dict[str, str]:
 
 @functools.lru_cache(maxsize=1)
 def git_commit() -> str | None:
-    """The git commit of the working directory's repository, when there is one."""
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                             timeout=5, check=False)
-    except (OSError, subprocess.SubprocessError):
+    """The git commit of the repbench code that runs: HEAD of the checkout the installed
+    ``repbench`` package lives in (a source tree or an editable install); None when it lives in
+    none (installed from a wheel). Never the commit of the folder the command runs in."""
+    return source_commit(Path(__file__).resolve().parent)
+
+
+def source_commit(package_dir: Path) -> str | None:
+    """HEAD of the git checkout that tracks ``package_dir/__init__.py``; None when no checkout
+    does (not a checkout, or an untracked folder inside someone else's, like a virtual
+    environment's site-packages inside a user's project)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("GIT_")}
+
+    def git(*args: str) -> str | None:
+        try:
+            out = subprocess.run(["git", "-C", str(package_dir), *args], capture_output=True,
+                                 text=True, timeout=5, check=False, env=env)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return out.stdout.strip() or None if out.returncode == 0 else None
+
+    if git("ls-files", "--error-unmatch", "--", "__init__.py") is None:
         return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
+    return git("rev-parse", "HEAD")
 
 
 @dataclass(frozen=True)
@@ -204,13 +238,62 @@ class Store:
         arts = (self.get(stage, p.name) for p in sorted(base.iterdir()) if p.is_dir())
         return [a for a in arts if a is not None]
 
+    # -- locking ---------------------------------------------------------------------------------
+    def lock_path(self, stage: str, key: str) -> Path:
+        return self.root / stage / f"{key}{LOCK_SUFFIX}"
+
+    @contextlib.contextmanager
+    def lock(self, stage: str, key: str, *, wait: bool = True) -> Iterator[bool]:
+        """Hold the stage's lock (an exclusive ``flock`` on :meth:`lock_path`) in the block.
+
+        Yields True once held; with ``wait=False`` it yields False at once instead of waiting
+        when another process (or thread) holds it. Re-entrant within one thread. A lock held by
+        a process that died is free: the kernel drops it with the process.
+        """
+        path = self.lock_path(stage, key)
+        ident = (str(path), threading.get_ident())
+        if fcntl is None or ident in _HELD:
+            if ident in _HELD:
+                _HELD[ident][1] += 1
+            try:
+                yield True
+            finally:
+                if ident in _HELD:
+                    _HELD[ident][1] -= 1
+            return
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | (0 if wait else fcntl.LOCK_NB))
+            except BlockingIOError:
+                acquired = False
+            else:
+                acquired = True
+                _HELD[ident] = [fd, 1]
+            try:
+                yield acquired
+            finally:
+                _HELD.pop(ident, None)
+        finally:
+            os.close(fd)  # releases the flock
+
     # -- writing ---------------------------------------------------------------------------------
     @contextlib.contextmanager
     def write(self, stage: str, key: str, *, config: Mapping[str, Any],
               inputs: Sequence[str] = (), seeds: Mapping[str, Any] | None = None
               ) -> Iterator[ArtifactWriter]:
         """Context manager: write files into ``writer.path``; on success they are committed
-        atomically with their metadata record. On any exception nothing becomes visible."""
+        atomically with their metadata record. On any exception nothing becomes visible.
+
+        The stage's lock (:meth:`lock`) is held from the temporary folder's creation until the
+        commit, so :meth:`clean_tmp` can tell a folder being written from a leftover."""
+        with self.lock(stage, key):
+            yield from self._write(stage, key, config=config, inputs=inputs, seeds=seeds)
+
+    def _write(self, stage: str, key: str, *, config: Mapping[str, Any],
+               inputs: Sequence[str], seeds: Mapping[str, Any] | None
+               ) -> Iterator[ArtifactWriter]:
         tmp = self.root / ".tmp" / f"{stage}-{key}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         tmp.mkdir(parents=True)
         writer = ArtifactWriter(tmp)
@@ -248,13 +331,29 @@ class Store:
                 shutil.rmtree(tmp, ignore_errors=True)
 
     def clean_tmp(self, older_than_s: float = 3600.0) -> int:
-        """Remove temporary directories left by killed writers; returns how many."""
+        """Remove temporary folders left by killed writers; returns how many.
+
+        A folder :meth:`write` names is being written while its stage's lock is held, so one
+        whose lock is free is a leftover and goes at once; a folder of another name goes when
+        it is older than ``older_than_s``."""
         removed = 0
         now = time.time()
-        for p in (self.root / ".tmp").iterdir():
-            if p.is_dir() and now - p.stat().st_mtime > older_than_s:
-                shutil.rmtree(p, ignore_errors=True)
-                removed += 1
+        for p in sorted((self.root / ".tmp").iterdir()):
+            if not p.is_dir():
+                continue
+            m = _TMP_NAME.match(p.name)
+            if m is None:
+                if now - p.stat().st_mtime > older_than_s:
+                    shutil.rmtree(p, ignore_errors=True)
+                    removed += 1
+                continue
+            path = str(self.lock_path(m["stage"], m["key"]))
+            if any(held == path for held, _ in _HELD):  # this process is writing it
+                continue
+            with self.lock(m["stage"], m["key"], wait=False) as free:
+                if free and p.exists():
+                    shutil.rmtree(p, ignore_errors=True)
+                    removed += 1
         return removed
 
 

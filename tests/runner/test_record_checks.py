@@ -1,0 +1,163 @@
+"""Every reader of records checks them: an edited or truncated record is left out by name,
+never published; the rest is."""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from repbench.errors import ConfigError
+from repbench.records import CHECKSUM, SCHEMA_VERSION, inspect_record, record_checksum
+from repbench.runner import rebuild_leaderboards, run_suite
+
+from .tiny_toy_suite import tiny_toy_suite
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    """(suite file, store, leaderboard folder) of one finished tiny run."""
+    base = tmp_path_factory.mktemp("checked")
+    suite = base / "toycheck.toml"
+    suite.write_text(tiny_toy_suite("toycheck", ["oracle", "pca"]))
+    result = run_suite(suite, store=base / "store", out=base / "lb", workers=1, progress=False)
+    assert not result.report.failed
+    return suite, base / "store", base / "lb"
+
+
+def _find(folder: Path, kind: str, encoder: str, name: str = "") -> Path:
+    for path in sorted(folder.rglob("*.json")):
+        r = json.loads(path.read_text())
+        if (r.get("kind") == kind and r["encoder"]["name"] == encoder
+                and name in {"", (r.get("metric") or r.get("agent") or {}).get("name")}):
+            return path
+    raise AssertionError(f"no {kind} record of {encoder} {name} in {folder}")
+
+
+def _damage(tampered: Path, truncated: Path) -> float:
+    """Move a metric value outside its own interval; cut a record in half."""
+    r = json.loads(tampered.read_text())
+    r["values"]["value"] = r["values"]["ci_high"] + 10.0
+    tampered.write_text(json.dumps(r, indent=1, sort_keys=True))
+    text = truncated.read_text()
+    truncated.write_text(text[: len(text) // 2])
+    return float(r["values"]["value"])
+
+
+def _left_out(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING
+            and "left out" in r.getMessage()]
+
+
+def test_records_carry_their_checksum(finished: tuple[Path, Path, Path]) -> None:
+    _, store, lb = finished
+    written = sorted(store.glob("*/*/record.json")) + sorted((lb / "records").rglob("*.json"))
+    assert len(written) == 2 * 12  # dataset, diagnostics, 2 × (encoder, latents, 2 metrics, RL)
+    for path in written:
+        record, problem = inspect_record(path)
+        assert problem is None and record is not None
+        assert record["schema_version"] == SCHEMA_VERSION == 2
+        assert record[CHECKSUM] == record_checksum(record)
+
+
+def test_damaged_records_in_a_records_folder_are_left_out_by_name(
+        finished: tuple[Path, Path, Path], tmp_path: Path,
+        caplog: pytest.LogCaptureFixture) -> None:
+    suite, _, lb = finished
+    folder = tmp_path / "records"
+    shutil.copytree(lb / "records", folder)
+    tampered = _find(folder, "metric", "pca", "regression")
+    truncated = _find(folder, "rl", "oracle")
+    edited = _damage(tampered, truncated)
+    with caplog.at_level(logging.WARNING):
+        rebuild_leaderboards(suite, records=folder, out=tmp_path / "out")
+    assert sorted(_left_out(caplog)) == sorted([
+        f"record {truncated} is not valid JSON (truncated or corrupt): left out; rerun the "
+        "stage with `repbench run`",
+        f"record {tampered} fails its checksum (edited or corrupt): left out; rerun the stage "
+        "with `repbench run`"])
+    enc = pd.read_csv(tmp_path / "out" / "encoders.csv").set_index("encoder")
+    before = pd.read_csv(lb / "encoders.csv").set_index("encoder")
+    assert pd.isna(enc.loc["pca", "regression"]) and edited not in enc.to_numpy()
+    assert pd.isna(enc.loc["oracle", "sac_return"])
+    for kept in (("pca", "ksg"), ("oracle", "regression"), ("pca", "sac_return")):
+        assert enc.loc[kept] == before.loc[kept]  # the rest is published unchanged
+    assert len(list((tmp_path / "out" / "records").rglob("*.json"))) == 12 - 2
+    page = (tmp_path / "out" / "index.html").read_text()
+    assert "fails its checksum (edited or corrupt)" in page and tampered.name in page
+
+
+def test_damaged_records_in_a_store_are_left_out_by_name(
+        finished: tuple[Path, Path, Path], tmp_path: Path,
+        caplog: pytest.LogCaptureFixture) -> None:
+    suite, store, lb = finished
+    copy = tmp_path / "store"
+    shutil.copytree(store, copy)
+    tampered = _find(copy, "metric", "oracle", "ksg").parent / "record.json"
+    truncated = _find(copy, "encoder", "pca").parent / "record.json"
+    # the tamperer also fixes the record's own checksum: the store's meta.json still knows
+    r = json.loads(tampered.read_text())
+    r["values"]["value"] = r["values"]["ci_high"] + 10.0
+    r[CHECKSUM] = record_checksum(r)
+    tampered.write_text(json.dumps(r, indent=1, sort_keys=True))
+    text = truncated.read_text()
+    truncated.write_text(text[: len(text) // 3])
+    with caplog.at_level(logging.WARNING):
+        rebuild_leaderboards(suite, store=copy, out=tmp_path / "out")
+    messages = _left_out(caplog)
+    assert len(messages) == 2
+    assert any(str(tampered) in m and "fails its checksum" in m for m in messages)
+    assert any(str(truncated) in m and "not valid JSON" in m for m in messages)
+    enc = pd.read_csv(tmp_path / "out" / "encoders.csv").set_index("encoder")
+    assert pd.isna(enc.loc["oracle", "ksg"])
+    assert enc.loc["pca", "ksg"] == pd.read_csv(lb / "encoders.csv").set_index(
+        "encoder").loc["pca", "ksg"]
+
+
+@pytest.mark.parametrize("suite", ["smoke", "quick"])
+def test_shipped_reference_records_pass_their_checks(suite: str,
+                                                     caplog: pytest.LogCaptureFixture) -> None:
+    folder = ROOT / "leaderboards" / suite / "records"
+    paths = sorted(folder.rglob("*.json"))
+    assert paths
+    for path in paths:
+        record, problem = inspect_record(path)
+        assert problem is None and record is not None, problem
+        assert record[CHECKSUM] == record_checksum(record)
+
+
+def test_records_of_another_suite_are_refused(finished: tuple[Path, Path, Path],
+                                              tmp_path: Path) -> None:
+    _, _, lb = finished
+    other = tmp_path / "toyother.toml"
+    other.write_text(tiny_toy_suite("toyother", ["oracle", "pca"]).replace(
+        "random_episodes = 3", "random_episodes = 4"))
+    with pytest.raises(ConfigError, match=r"^the records in records folder .* belong to suite "
+                       r"'toycheck', not to suite 'toyother' that was asked for; pass --suite "
+                       r"toycheck, or the records of suite toyother$"):
+        rebuild_leaderboards(other, records=lb / "records", out=tmp_path / "out")
+    with pytest.raises(ConfigError, match=r"belong to suite 'quick' \(373 of their 373 "
+                       r"stages\), not to suite 'smoke' that was asked for"):
+        rebuild_leaderboards("smoke", records=ROOT / "leaderboards" / "quick" / "records",
+                             out=tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_records_beyond_the_suite_are_left_out_by_count(finished: tuple[Path, Path, Path],
+                                                        tmp_path: Path,
+                                                        caplog: pytest.LogCaptureFixture) -> None:
+    _, _, lb = finished
+    fewer = tmp_path / "toyfewer.toml"
+    fewer.write_text(tiny_toy_suite("toyfewer", ["oracle"]))
+    with caplog.at_level(logging.WARNING):
+        rebuild_leaderboards(fewer, records=lb / "records", out=tmp_path / "out")
+    assert f"5 of the 12 records in records folder {lb / 'records'} are not stages of suite " \
+           "'toyfewer': left out" in caplog.text
+    enc = pd.read_csv(tmp_path / "out" / "encoders.csv")
+    assert list(enc["encoder"]) == ["oracle"]
