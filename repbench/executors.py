@@ -152,6 +152,10 @@ def make_executor(kind: str, store_root: str, workers: int | None = None,
         n = workers or os.cpu_count() or 1
         return InProcessExecutor(store_root) if n <= 1 else LocalPoolExecutor(store_root, n)
     if kind == "ray":
+        if ray_address:
+            from repbench.preflight import check_ray_address
+
+            check_ray_address(ray_address)  # before ray.init, which may wait minutes
         return RayExecutor(store_root, ray_address, workers)
     raise ConfigError(f"unknown executor {kind!r}; choose 'local' or 'ray'")
 

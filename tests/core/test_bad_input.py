@@ -1,0 +1,155 @@
+"""Bad input (issue 21, part B): one line naming the thing and the fix, exit code 2, before any
+stage runs. Each test failed on the code before the fix. Nothing here renders robosuite or
+trains: commands that get past the checks would run stages, and ``no_stage_runs`` makes that a
+test failure at once."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from repbench.cli import main
+from repbench.errors import ConfigError
+from repbench.preflight import check_ray_address
+
+from ..runner.tiny_toy_suite import tiny_toy_suite
+
+ROOT = Path(__file__).resolve().parents[2]
+TOY = tiny_toy_suite("toybad", ["oracle"])
+
+
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> str:
+    """Run the CLI in this process; assert exit code 2 and one line on stderr; return it."""
+    with pytest.raises(SystemExit) as info:
+        main(list(args))
+    err = capsys.readouterr().err
+    assert info.value.code == 2, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("repbench: error: "), err
+    return err
+
+
+@pytest.fixture
+def no_stage_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any stage that starts fails the test (the checks must come first)."""
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a stage ran before the bad input was noticed")
+
+    monkeypatch.setattr("repbench.runner.run_stages", refuse)
+    monkeypatch.setattr("repbench.evaluate.run_stages", refuse)
+
+
+@pytest.fixture
+def toy_suite(tmp_path: Path) -> Path:
+    path = tmp_path / "toybad.toml"
+    path.write_text(TOY)
+    return path
+
+
+@pytest.fixture
+def closed_port() -> int:
+    """A loopback port nobody listens on (bound, then released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture
+def no_ray_env(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """No $RAY_ADDRESS, and Ray's temp folder (where `ray start` records the cluster) empty."""
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setenv("RAY_TMPDIR", str(tmp_path / "raytmp"))
+    return tmp_path / "raytmp"
+
+
+@pytest.fixture
+def unwritable_dir(tmp_path: Path) -> Iterator[Path]:
+    """A folder nobody can create files in (a read-only folder; as root, /sys)."""
+    folder = tmp_path / "readonly"
+    folder.mkdir()
+    folder.chmod(0o500)
+    try:
+        (folder / "probe").touch()
+    except OSError:
+        yield folder
+    else:  # root ignores permissions
+        (folder / "probe").unlink()
+        if os.access("/sys", os.W_OK) and _can_create_in(Path("/sys")):
+            pytest.skip("no unwritable folder on this machine")
+        yield Path("/sys")
+    finally:
+        folder.chmod(0o700)
+
+
+def _can_create_in(folder: Path) -> bool:
+    try:
+        (folder / ".repbench-test-probe").touch()
+    except OSError:
+        return False
+    (folder / ".repbench-test-probe").unlink()
+    return True
+
+
+# -- the Ray address ----------------------------------------------------------------------------
+
+def test_ray_address_that_does_not_answer_fails_in_seconds(tmp_path: Path, toy_suite: Path
+                                                           ) -> None:
+    """Before: ray.init waited more than 4 minutes (and rewrote 127.0.0.1)."""
+    store = tmp_path / "s"
+    out = subprocess.run(
+        [sys.executable, "-m", "repbench.cli", "run", "--suite", str(toy_suite), "--store",
+         str(store), "--executor", "ray", "--ray-address", "127.0.0.1:1"],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) == 1
+    assert "--ray-address: no Ray cluster answers at 127.0.0.1:1" in out.stderr
+    assert "ray start --head" in out.stderr
+    assert not (store / "dataset").exists()
+
+
+def test_ray_address_auto_without_a_cluster(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                            toy_suite: Path, no_ray_env: Path,
+                                            no_stage_runs: None) -> None:
+    """Before: a ConnectionError traceback from inside ray.init."""
+    err = _cli(capsys, "run", "--suite", str(toy_suite), "--store", str(tmp_path / "s"),
+               "--executor", "ray", "--ray-address", "auto")
+    assert "--ray-address auto: no running Ray cluster found" in err
+    assert str(no_ray_env / "ray" / "ray_current_cluster") in err
+
+
+def test_ray_address_auto_finds_a_stale_cluster_file(no_ray_env: Path, closed_port: int) -> None:
+    (no_ray_env / "ray").mkdir(parents=True)
+    (no_ray_env / "ray" / "ray_current_cluster").write_text(f"127.0.0.1:{closed_port}\n")
+    with pytest.raises(ConfigError, match=rf"auto \(found 127\.0\.0\.1:{closed_port} in .*"
+                                          r"ray_current_cluster\): no Ray cluster answers"):
+        check_ray_address("auto")
+
+
+def test_ray_address_auto_uses_the_environment(no_ray_env: Path, closed_port: int,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{closed_port}")
+    with pytest.raises(ConfigError, match=r"\$RAY_ADDRESS=127\.0\.0\.1:\d+\): no Ray cluster"):
+        check_ray_address("auto")
+
+
+@pytest.mark.parametrize("address", ["nonsense", "127.0.0.1", "127.0.0.1:99999", ":6379"])
+def test_ray_address_that_is_not_host_port(address: str) -> None:
+    with pytest.raises(ConfigError, match="is not a Ray address; use 'auto', 'local' or HOST:PORT"):
+        check_ray_address(address)
+
+
+def test_ray_address_that_answers_passes() -> None:
+    """The check refuses only what does not answer: a listening loopback port passes."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        port = server.getsockname()[1]
+        check_ray_address(f"127.0.0.1:{port}")
+        check_ray_address(f"ray://127.0.0.1:{port}")
+    check_ray_address("local")  # starts a new instance: nothing to reach
