@@ -17,6 +17,7 @@ import pytest
 from repbench.cli import main
 from repbench.errors import ConfigError
 from repbench.preflight import check_ray_address
+from repbench.suite import load_suite
 
 from ..runner.tiny_toy_suite import tiny_toy_suite
 
@@ -153,3 +154,43 @@ def test_ray_address_that_answers_passes() -> None:
         check_ray_address(f"127.0.0.1:{port}")
         check_ray_address(f"ray://127.0.0.1:{port}")
     check_ray_address("local")  # starts a new instance: nothing to reach
+
+
+# -- the suite file -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("old, new, needles", [
+    ("train_steps = 60", 'train_steps = "60"',
+     ["field 'rl.train_steps'", "got the string '60'", "unquoted"]),
+    ("train_steps = 60", f"train_steps = {2**63 - 1}",
+     ["field 'rl.train_steps'", "less than or equal to 1000000000"]),
+    ("seeds = [0]", "seeds = [0, 0]", ["field 'seeds'", "listed more than once: [0]"]),
+    ("seeds = [0]", "seeds = [-1]", ["field 'seeds.0'", "greater than or equal to 0"]),
+])
+def test_suite_values_refused_on_load(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                      old: str, new: str, needles: list[str],
+                                      no_stage_runs: None) -> None:
+    """Before: accepted ("60" became 60, seeds ran twice, -1 failed at the RL stage, 2**63-1
+    steps was planned)."""
+    path = tmp_path / "bad.toml"
+    assert old in TOY
+    path.write_text(TOY.replace(old, new, 1))
+    with pytest.raises(ConfigError) as info:
+        load_suite(path)
+    for needle in needles:
+        assert needle in str(info.value)
+    err = _cli(capsys, "run", "--suite", str(path), "--store", str(tmp_path / "s"))
+    assert str(path) in err and all(n in err for n in needles)
+    assert not (tmp_path / "s" / "dataset").exists()
+
+
+def test_builtin_suites_still_load_strictly() -> None:
+    for name in ("smoke", "quick", "paper"):
+        assert load_suite(name).rl.train_steps <= 10**9
+
+
+def test_suite_file_that_is_not_utf8(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Before: a UnicodeDecodeError traceback."""
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(TOY.replace('name = "toybad"', 'name = "café"').encode("latin-1"))
+    err = _cli(capsys, "run", "--suite", str(path), "--store", str(tmp_path / "s"))
+    assert f"suite file {path} is not UTF-8 text (byte 0xe9 on line 2); save it as UTF-8" in err
