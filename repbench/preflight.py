@@ -5,13 +5,17 @@ mistake in the last argument of a command costs seconds, not a finished run:
 
 * :func:`check_ray_address`: the Ray cluster answers (a TCP connect with a short timeout)
   before the address is handed to ``ray.init``, which otherwise waits minutes for a host that
-  does not answer, and prints a traceback when ``auto`` finds no cluster.
+  does not answer, and prints a traceback when ``auto`` finds no cluster;
+* :func:`check_out_dir`: a leaderboard folder can be created and written (``run`` and
+  ``evaluate`` write it only after every stage ran);
+* :func:`check_out_file`: a figure file can be written, in a format matplotlib knows.
 """
 
 from __future__ import annotations
 
 import os
 import socket
+import tempfile
 from pathlib import Path
 
 from repbench.errors import ConfigError
@@ -78,3 +82,52 @@ def _host_port(address: str, where: str) -> tuple[str, int]:
                           "HOST:PORT of the cluster's head node (e.g. 10.0.0.5:6379)")
     return host, int(port)
 
+
+def check_out_dir(out: str | os.PathLike[str], option: str = "--out") -> Path:
+    """Raise ConfigError unless ``out`` is (or can be created as) a writable folder; creates
+    nothing. Returns it as a Path."""
+    if not str(out).strip():
+        raise ConfigError(f"{option} is empty; pass the folder to write to (or leave the "
+                          "option out for the default)")
+    path = Path(out).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{option} {path} is a file, not a folder; pass a folder (it is "
+                          "created if missing)")
+    _check_writable_below(path, option, "folder")
+    return path
+
+
+def check_out_file(out: str | os.PathLike[str], option: str = "--out") -> Path:
+    """Raise ConfigError unless a figure can be written to ``out``: not a folder, a writable
+    (or creatable) parent folder, and a file extension matplotlib can write. Creates nothing."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    if not str(out).strip():
+        raise ConfigError(f"{option} is empty; pass the file to write, e.g. preview.png")
+    path = Path(out).expanduser()
+    if path.is_dir():
+        raise ConfigError(f"{option} {path} is a folder; pass a file name, e.g. "
+                          f"{path / 'preview.png'}")
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix and suffix not in formats:
+        raise ConfigError(f"{option} {path}: unknown image format {path.suffix!r}; use one of "
+                          f"{', '.join('.' + f for f in formats)}")
+    _check_writable_below(path.parent, option, "file")
+    return path
+
+
+def _check_writable_below(path: Path, option: str, what: str) -> None:
+    """``path`` can be created (its nearest existing ancestor is a folder we can write in)."""
+    existing = path.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ConfigError(f"{option} {path}: {existing} is a file, so the {what} cannot be "
+                          "created there; choose another path")
+    try:
+        with tempfile.TemporaryFile(dir=existing, prefix=".repbench-probe-"):
+            pass
+    except OSError as exc:
+        raise ConfigError(f"{option} {path}: cannot write in {existing} "
+                          f"({exc.strerror or exc}); choose a writable path") from None

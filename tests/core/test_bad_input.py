@@ -15,8 +15,9 @@ from pathlib import Path
 import pytest
 
 from repbench.cli import main
-from repbench.errors import ConfigError
+from repbench.errors import ConfigError, StoreError
 from repbench.preflight import check_ray_address
+from repbench.store import Store
 from repbench.suite import load_suite
 
 from ..runner.tiny_toy_suite import tiny_toy_suite
@@ -194,3 +195,57 @@ def test_suite_file_that_is_not_utf8(capsys: pytest.CaptureFixture[str], tmp_pat
     path.write_bytes(TOY.replace('name = "toybad"', 'name = "café"').encode("latin-1"))
     err = _cli(capsys, "run", "--suite", str(path), "--store", str(tmp_path / "s"))
     assert f"suite file {path} is not UTF-8 text (byte 0xe9 on line 2); save it as UTF-8" in err
+
+
+# -- --store and --out --------------------------------------------------------------------------
+
+def test_empty_store_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                toy_suite: Path, no_stage_runs: None,
+                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before: --store '' made the current folder the store."""
+    monkeypatch.chdir(tmp_path)
+    err = _cli(capsys, "run", "--suite", str(toy_suite), "--store", "")
+    assert "--store is empty; pass the store folder" in err
+    assert not (tmp_path / ".tmp").exists()
+    with pytest.raises(StoreError, match="--store is empty"):
+        Store("")
+
+
+def _out_cases(tmp_path: Path, unwritable: Path) -> dict[str, tuple[str, str]]:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    return {"file": (str(a_file), f"--out {a_file} is a file, not a folder"),
+            "below a file": (str(a_file / "lb"), f"{a_file} is a file, so the folder cannot"),
+            "unwritable": (str(unwritable / "lb"), f"cannot write in {unwritable}"),
+            "empty": ("", "--out is empty")}
+
+
+@pytest.mark.parametrize("case", ["file", "below a file", "unwritable", "empty"])
+def test_run_checks_out_before_any_stage(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                         toy_suite: Path, unwritable_dir: Path, case: str,
+                                         no_stage_runs: None) -> None:
+    """Before: every stage ran, then writing the leaderboard failed with a traceback."""
+    out, needle = _out_cases(tmp_path, unwritable_dir)[case]
+    err = _cli(capsys, "run", "--suite", str(toy_suite), "--store", str(tmp_path / "s"),
+               "--out", out, "--workers", "1")
+    assert needle in err
+    assert not (tmp_path / "s" / "dataset").exists()
+
+
+@pytest.mark.parametrize("case", ["file", "unwritable"])
+def test_evaluate_checks_out_before_any_stage(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                              unwritable_dir: Path, case: str,
+                                              no_stage_runs: None) -> None:
+    out, needle = _out_cases(tmp_path, unwritable_dir)[case]
+    err = _cli(capsys, "evaluate", "pca", "--suite", "smoke", "--metrics-only", "--reference",
+               str(ROOT / "leaderboards" / "smoke" / "records"), "--store", str(tmp_path / "s"),
+               "--out", out, "--workers", "1")
+    assert needle in err
+
+
+def test_leaderboard_checks_out(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Before: a FileExistsError traceback after the tables were computed."""
+    out, needle = _out_cases(tmp_path, tmp_path)["file"]
+    err = _cli(capsys, "leaderboard", "--suite", "smoke", "--records",
+               str(ROOT / "leaderboards" / "smoke" / "records"), "--out", out)
+    assert needle in err
