@@ -249,3 +249,41 @@ def test_leaderboard_checks_out(capsys: pytest.CaptureFixture[str], tmp_path: Pa
     err = _cli(capsys, "leaderboard", "--suite", "smoke", "--records",
                str(ROOT / "leaderboards" / "smoke" / "records"), "--out", out)
     assert needle in err
+
+
+# -- repbench task preview ----------------------------------------------------------------------
+
+@pytest.mark.parametrize("args, needle", [
+    (["--frames", "0"], "--frames must be a whole number >= 1, got 0"),
+    (["--frames", "-2"], "--frames must be a whole number >= 1, got -2"),
+    (["--seed", "-1"], "--seed must be a whole number >= 0, got -1"),
+    (["--out", "{tmp}/p.xyz"], "unknown image format '.xyz'; use one of"),
+    (["--out", "{tmp}"], "is a folder; pass a file name"),
+    (["--out", "{unwritable}/p.png"], "cannot write in {unwritable}"),
+])
+def test_task_preview_bad_arguments(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                    unwritable_dir: Path, args: list[str], needle: str,
+                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before: a ValueError / PermissionError traceback (the last two after the rollout)."""
+    from repbench.testing.toy_task import ToyReachTask
+
+    def no_rollout(*a: object, **k: object) -> None:
+        raise AssertionError("the rollout started before the bad argument was noticed")
+
+    monkeypatch.setattr(ToyReachTask, "collect", no_rollout)
+    monkeypatch.chdir(tmp_path)
+    fill = {"tmp": str(tmp_path), "unwritable": str(unwritable_dir)}
+    err = _cli(capsys, "task", "preview", "ToyReach-v0",
+               *[a.format(**fill) for a in args])
+    assert needle.format(**fill) in err
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_task_preview_good_arguments_still_work(capsys: pytest.CaptureFixture[str],
+                                                tmp_path: Path) -> None:
+    out = tmp_path / "new" / "p.png"  # a missing folder is created
+    with pytest.raises(SystemExit) as info:
+        main(["task", "preview", "ToyReach-v0", "--frames", "2", "--seed", "3", "--out",
+              str(out)])
+    assert info.value.code == 0, capsys.readouterr().err
+    assert out.stat().st_size > 1000
