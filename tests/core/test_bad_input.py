@@ -287,3 +287,37 @@ def test_task_preview_good_arguments_still_work(capsys: pytest.CaptureFixture[st
               str(out)])
     assert info.value.code == 0, capsys.readouterr().err
     assert out.stat().st_size > 1000
+
+
+# -- task parameters ----------------------------------------------------------------------------
+
+_PEG = """
+tasks = ["PegInHole-v0"]
+encoders = ["oracle"]
+metrics = ["ksg"]
+[dataset]
+on_policy_episodes = 0
+"""
+
+
+@pytest.mark.parametrize("text, needles", [
+    (TOY.replace("horizon = 20", "horizon = 0"),
+     ["task_params.'ToyReach-v0'", "ToyReach-v0: horizon=0 must be a whole number >= 1"]),
+    (TOY.replace("horizon = 20", "max_speed = -0.1"),
+     ["ToyReach-v0: max_speed=-0.1 must be a number > 0"]),
+    (_PEG + '[task_params."PegInHole-v0"]\nclearance = "wide"\n',
+     ["task_params.'PegInHole-v0'", "PegInHole-v0: clearance='wide' must be a number"]),
+    (_PEG + '[task_params."PegInHole-v0"]\ncamera = "false"\n',
+     ["PegInHole-v0: camera='false' must be true or false"]),
+])
+def test_task_parameters_refused_before_any_stage(capsys: pytest.CaptureFixture[str],
+                                                  tmp_path: Path, text: str,
+                                                  needles: list[str], no_stage_runs: None
+                                                  ) -> None:
+    """Before: ToyReach accepted horizon = 0 (and ran), PegInHole's clearance = "wide" gave a
+    numpy message without the field's name, camera = "false" turned the camera on."""
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    err = _cli(capsys, "run", "--suite", str(path), "--store", str(tmp_path / "s"))
+    assert str(path) in err and all(n in err for n in needles), err
+    assert not (tmp_path / "s" / "dataset").exists()
