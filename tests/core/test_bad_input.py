@@ -321,3 +321,43 @@ def test_task_parameters_refused_before_any_stage(capsys: pytest.CaptureFixture[
     err = _cli(capsys, "run", "--suite", str(path), "--store", str(tmp_path / "s"))
     assert str(path) in err and all(n in err for n in needles), err
     assert not (tmp_path / "s" / "dataset").exists()
+
+
+# -- metric parameters --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("section, needles", [
+    ("[metric_params.regression]\ntest_fraction = 2.0",
+     ["field metric_params.regression", "'test_fraction' must be in (0, 1)"]),
+    ('[metric_params.mine]\nhidden = "big"',
+     ["field metric_params.mine", "parameter 'hidden' must be a whole number, got 'big'"]),
+    ('[metric_params.regression]\nhidden = [64, "wide"]',
+     ["parameter 'hidden' must be a list of whole numbers, got [64, 'wide']"]),
+    ("[metric_params.ksg]\nk = 0", ["field metric_params.ksg", "'k' must be >= 1, got 0"]),
+    ("[metric_params.ksg]\nkk = 3",
+     ["field metric_params.ksg", "unknown parameter(s) ['kk']; valid: ['k', 'n_bootstrap']"]),
+])
+def test_metric_parameters_refused_before_any_stage(capsys: pytest.CaptureFixture[str],
+                                                    tmp_path: Path, section: str,
+                                                    needles: list[str], no_stage_runs: None
+                                                    ) -> None:
+    """Before: checked only when the metric ran (after datasets, encoders and latents), and the
+    unknown-parameter message offered z, z_true, episode and rng as valid parameters."""
+    path = tmp_path / "bad.toml"
+    text = TOY.replace('metrics = ["ksg", "regression"]', 'metrics = ["ksg", "regression", "mine"]')
+    path.write_text(text + section + "\n")
+    err = _cli(capsys, "run", "--suite", str(path), "--store", str(tmp_path / "s"))
+    assert str(path) in err and all(n in err for n in needles), err
+    for internal in ("'z'", "'z_true'", "'episode'", "'rng'", "'robot_state'"):
+        assert internal not in err
+    assert not (tmp_path / "s" / "dataset").exists()
+
+
+def test_metric_parameters_fit_every_builtin_default() -> None:
+    """The check refuses no default (it would refuse every suite)."""
+    from repbench.registry import metrics
+
+    for name in metrics.names():
+        metric = metrics.get(name)
+        defaults = {k: p.default for k, p in metric.parameters.items()}
+        metric.check_params(defaults)
+        assert not {"z", "z_true", "episode", "rng"} & set(metric.parameters), name
