@@ -11,11 +11,14 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, ClassVar
 
+import numpy as np
 import pytest
 
+import repbench
 from repbench.cli import main
-from repbench.errors import ConfigError, StoreError
+from repbench.errors import ConfigError, DataError, StoreError
 from repbench.preflight import check_ray_address
 from repbench.store import Store
 from repbench.suite import load_suite
@@ -361,3 +364,115 @@ def test_metric_parameters_fit_every_builtin_default() -> None:
         defaults = {k: p.default for k, p in metric.parameters.items()}
         metric.check_params(defaults)
         assert not {"z", "z_true", "episode", "rng"} & set(metric.parameters), name
+
+
+# -- what a user encoder returns ----------------------------------------------------------------
+
+class Broken(repbench.Encoder):
+    """A user encoder that breaks the contract as ``mode`` says (``"ok"``: it does not)."""
+
+    required_modalities = ("proprio",)
+    #: overrides ``mode`` after loading (to break the latents stage, not the encoder stage)
+    force_mode: ClassVar[str | None] = None
+
+    def __init__(self, mode: str = "ok") -> None:
+        self.mode = mode
+
+    def fit(self, dataset: repbench.Dataset) -> Any:
+        self.width_ = 3
+        return None if self.mode == "fit_none" else self
+
+    def encode(self, observations: Any) -> Any:
+        self.check_is_fitted()
+        p = self.check_observations(observations)["proprio"][:, :3].astype(np.float32)
+        mode = self.force_mode or self.mode
+        return {"ok": p, "width": np.hstack([p, p]), "short": p[1:], "1d": p[:, 0],
+                "strings": p.astype(str), "nan": np.where(p > 0, np.nan, p),
+                "list": p.tolist(), "fit_none": p}[mode]
+
+    @property
+    def latent_dim(self) -> int:
+        return self.width_
+
+
+@pytest.fixture(scope="module")
+def broken_plan(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict]]:
+    """A store with the toy random dataset, and the encoder/latents stages of ``Broken`` in
+    every mode."""
+    from repbench.plan import build_plan
+    from repbench.registry import encoders
+    from repbench.stages import execute
+
+    encoders.register("broken_test_encoder", Broken, replace=True)
+    folder = tmp_path_factory.mktemp("broken")
+    modes = ["ok", "width", "short", "1d", "strings", "nan", "list", "fit_none"]
+    text = TOY.replace('encoders = ["oracle"]', 'encoders = ["broken_test_encoder"]')
+    stages = {}
+    for mode in modes:
+        path = folder / f"{mode}.toml"
+        path.write_text(text + f'[encoder_params.broken_test_encoder]\nmode = "{mode}"\n')
+        tp = build_plan(load_suite(path)).tasks[0]
+        stages[mode] = (tp.encoders["broken_test_encoder"], tp.latents["broken_test_encoder"])
+    root = str(folder / "store")
+    execute(tp.random_dataset, root)
+    yield root, stages
+    encoders.unregister("broken_test_encoder")
+
+
+_BROKEN = {
+    "width": r"encode returned shape \(8, 6\) for 8 observations, expected \(8, 3\) "
+             r"\(latent_dim = 3\); encode must return a float32 array \[N, latent_dim\]",
+    "short": r"encode returned shape \(7, 3\) for 8 observations, expected \(8, 3\)",
+    "1d": r"encode returned shape \(8,\) for 8 observations, expected \(8, 3\)",
+    "strings": r"encode returned <U\d+ values, not numbers; encode must return a float32",
+    "nan": r"encode returned NaN or infinite values in \d+ of 8 rows; check the encoder",
+    "list": r"encode must return a numpy array, got list",
+    "fit_none": r"fit must return self, returned None; end fit with `return self`",
+}
+
+
+@pytest.mark.parametrize("mode", sorted(_BROKEN))
+def test_broken_encoder_stops_at_the_encoder_stage(broken_plan: tuple[str, dict], mode: str
+                                                   ) -> None:
+    """Before: a wrong-width latent reached the metrics (only RL failed); short rows, 1-D
+    arrays and strings failed in numpy; fit returning None gave "'NoneType' object has no
+    attribute 'save'"."""
+    from repbench.stages import ENCODER, execute
+
+    root, stages = broken_plan
+    encoder_stage, _ = stages[mode]
+    with pytest.raises(DataError, match="^encoder 'broken_test_encoder' \\(Broken\\): "
+                       + _BROKEN[mode]) as info:
+        execute(encoder_stage, root)
+    assert "\n" not in str(info.value)
+    assert Store(root).get(ENCODER, encoder_stage.key) is None  # nothing stored
+
+
+@pytest.mark.parametrize("mode", ["width", "short", "1d", "strings", "nan"])
+def test_broken_encoder_stops_at_the_latents_stage(broken_plan: tuple[str, dict], mode: str,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """An encoder that passed its own stage but encodes the metric data wrongly: no latents
+    are stored, so no metric of them can be published."""
+    from repbench.stages import LATENTS, execute
+
+    root, stages = broken_plan
+    encoder_stage, latents_stage = stages["ok"]
+    execute(encoder_stage, root)
+    monkeypatch.setattr(Broken, "force_mode", mode)
+    message = _BROKEN[mode].replace("8", "60").replace(r"\(7, 3\)", r"\(59, 3\)")
+    with pytest.raises(DataError, match="^encoder 'broken_test_encoder' \\(Broken\\): "
+                       + message):
+        execute(latents_stage, root)
+    assert Store(root).get(LATENTS, latents_stage.key) is None
+
+
+def test_good_encoder_passes_both_stages(broken_plan: tuple[str, dict]) -> None:
+    from repbench.stages import LATENTS, execute
+
+    root, stages = broken_plan
+    for stage in stages["ok"]:
+        execute(stage, root)
+    art = Store(root).get(LATENTS, stages["ok"][1].key)
+    assert art is not None
+    with np.load(art.file("latents.npz")) as f:
+        assert f["z"].shape == (60, 3) and f["z"].dtype == np.float32
