@@ -166,6 +166,14 @@ def main(argv: list[str] | None = None) -> None:
     except RepbenchError as exc:
         typer.echo(f"repbench: error: {exc}", err=True)
         sys.exit(2)
+    except OSError as exc:  # a full disk outside the store (leaderboards, figures): one line too
+        from repbench.diskfull import is_disk_full
+
+        if not is_disk_full(exc):
+            raise
+        typer.echo(f"repbench: error: no space left on the disk ({exc}); free some space and "
+                   "run the same command again", err=True)
+        sys.exit(2)
     except KeyboardInterrupt:
         typer.echo("repbench: interrupted; finished stages are kept in the store — run the "
                    "same command again to resume", err=True)

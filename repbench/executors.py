@@ -19,7 +19,7 @@ from typing import Any, Protocol
 
 from tqdm.auto import tqdm
 
-from repbench.errors import ConfigError
+from repbench.errors import ConfigError, DiskFullError
 from repbench.stages import StageSpec, execute
 from repbench.store import Store
 
@@ -55,6 +55,8 @@ def _stage_id(spec: StageSpec) -> str:
 def _execute_catching(spec: StageSpec, root: str, threads: int | None) -> dict[str, Any]:
     try:
         return execute(spec, root, threads)
+    except DiskFullError as exc:  # fatal: run_stages stops, every later stage would fail too
+        return {"error": str(exc), "fatal": True}
     except Exception as exc:  # shipped back as data: exceptions from plugins may not pickle
         return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
 
@@ -206,6 +208,8 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
             for handle, result in executor.wait_any(list(running)):
                 i = running.pop(handle)
                 spec = by_id[i]
+                if result.get("fatal"):
+                    raise DiskFullError(result["error"])
                 if "error" in result:
                     report.failed[i] = result["error"]
                     echo(f"FAILED {report.labels[i]}: {result['error']}")

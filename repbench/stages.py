@@ -18,6 +18,7 @@ import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
+from repbench.diskfull import stop_when_full
 from repbench.records import RECORD_FILE, make_record, write_record
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.store import Store, stage_key
@@ -289,9 +290,10 @@ def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
     start = time.time()
     if store.get(spec.kind, key) is not None:
         return {"key": key, "status": "cached", "seconds": 0.0}
-    with store.write(spec.kind, key, config=spec.config,
-                     inputs=[k for _, k in spec.inputs.values()],
-                     seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
+    with stop_when_full(f"stage {spec.label or spec.kind!r}", f"store {store.root}"), \
+            store.write(spec.kind, key, config=spec.config,
+                        inputs=[k for _, k in spec.inputs.values()],
+                        seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
         cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)

@@ -476,3 +476,96 @@ def test_good_encoder_passes_both_stages(broken_plan: tuple[str, dict]) -> None:
     assert art is not None
     with np.load(art.file("latents.npz")) as f:
         assert f["z"].shape == (60, 3) and f["z"].dtype == np.float32
+
+
+# -- a full disk --------------------------------------------------------------------------------
+
+def test_full_disk_stops_the_run_with_one_message(capsys: pytest.CaptureFixture[str],
+                                                  tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before: each stage failed in turn with OSError ENOSPC, then the run went on to the
+    leaderboard. Now the first full-disk error stops it: one message, exit code 2."""
+    import errno
+
+    from repbench.store import ArtifactWriter
+
+    attempts: list[str] = []
+
+    def full(self: ArtifactWriter, obj: object, name: str = "result.json") -> Path:
+        attempts.append(str(self.path))
+        raise OSError(errno.ENOSPC, "No space left on device", str(self.path / name))
+
+    monkeypatch.setattr(ArtifactWriter, "write_json", full)
+    path = tmp_path / "two_roots.toml"  # the random and the held-out dataset need no input
+    path.write_text(TOY.replace("on_policy_episodes = 0", "on_policy_episodes = 0\n"
+                                "heldout_episodes = 2"))
+    store = tmp_path / "s"
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--suite", str(path), "--store", str(store), "--out", str(tmp_path / "lb"),
+              "--workers", "1"])
+    err = capsys.readouterr().err
+    assert info.value.code == 2, err
+    assert "Traceback" not in err and err.count("repbench: error:") == 1, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"repbench: error: no space left on the disk of store {store} while "
+                           "writing stage 'ToyReach-v0 random data'; the run stopped"), last
+    assert "run the same command again: finished stages are kept" in last
+    assert len(attempts) == 1  # no second stage tried
+    assert not (tmp_path / "lb").exists()  # no leaderboard of a half run
+    assert not list((store / ".tmp").iterdir())  # the partial artifact was removed
+
+
+def test_full_disk_in_a_worker_stops_run_stages(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Pool and Ray workers hand the error back as data (marked fatal); run_stages stops."""
+    from repbench.errors import DiskFullError
+    from repbench.executors import _execute_catching, run_stages
+    from repbench.stages import DATASET, StageSpec
+
+    class Failing:
+        capacity = 2
+
+        def __init__(self) -> None:
+            self.submitted: list[str] = []
+            self.closed = False
+
+        def submit(self, spec: StageSpec) -> str:
+            self.submitted.append(spec.label)
+            return spec.label
+
+        def wait_any(self, handles: list[str]) -> list[tuple[str, dict[str, object]]]:
+            return [(h, {"error": f"no space left ({h})", "fatal": True}) for h in handles[:1]]
+
+        def shutdown(self) -> None:
+            self.closed = True
+
+    specs = [StageSpec(DATASET, {"n": i}, label=f"d{i}") for i in range(4)]
+    ex = Failing()
+    with pytest.raises(DiskFullError, match=r"no space left \(d0\)"):
+        run_stages(specs, Store(tmp_path / "s"), ex, progress=False, echo=lambda _: None)
+    assert ex.closed and ex.submitted == ["d0", "d1"]  # capacity 2: nothing after the error
+
+    def full(*args: object) -> dict[str, object]:
+        raise DiskFullError("no space left on the disk of store x")
+
+    monkeypatch.setattr("repbench.executors.execute", full)
+    assert _execute_catching(specs[0], str(tmp_path), 1) == {
+        "error": "no space left on the disk of store x", "fatal": True}
+
+
+def test_only_a_full_disk_is_fatal() -> None:
+    import errno
+
+    from repbench.diskfull import is_disk_full, stop_when_full
+    from repbench.errors import DiskFullError
+
+    # other write errors stay what they are
+    with pytest.raises(PermissionError), stop_when_full("stage x", "store y"):
+        raise PermissionError(errno.EACCES, "Permission denied")
+    with pytest.raises(DiskFullError, match="while writing stage x"), \
+            stop_when_full("stage x", "store y"):
+        try:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        except OSError as exc:
+            raise RuntimeError("file write failed") from exc  # as a library wraps it
+    assert not is_disk_full(ValueError("x"))
