@@ -127,9 +127,9 @@ def _run_encoder(spec: StageSpec, store: Store, w: Any) -> None:
     who = _encoder_label(cfg["encoder"], enc)
     check_fit_result(enc, fitted, who)
     dim = check_latent_dim(enc, who)
+    enc.save(w.file("encoder.pt"))  # before encoding: the stored encoder is the one fit made
     n = min(len(dataset), CHECK_ROWS)
     check_latents(enc.encode(dataset.obs(slice(0, n))), n, dim, who, float32=False)
-    enc.save(w.file("encoder.pt"))
     w.write_json({"latent_dim": dim, "fit_time_s": fit_time,
                   "params": enc.get_params(), "family": str(getattr(cls, "family", "learned")),
                   **_save_fit_history(enc, cfg["encoder"], w)})
