@@ -27,13 +27,15 @@ app.add_typer(task_app, name="task")
 
 KINDS = ("tasks", "encoders", "metrics", "agents")
 
+# str, not Path: typer turns "" into Path("."), and an empty --store/--out must be refused,
+# not taken for the current folder
 StoreOpt = Annotated[
-    Optional[Path],  # noqa: UP045 (typer needs Optional on 3.10)
+    Optional[str],  # noqa: UP045 (typer needs Optional on 3.10)
     typer.Option("--store", help="Stage-store directory (env REPBENCH_STORE; default "
                  "~/.cache/repbench/store).", envvar="REPBENCH_STORE", show_default=False),
 ]
 OutOpt = Annotated[
-    Optional[Path],  # noqa: UP045
+    Optional[str],  # noqa: UP045
     typer.Option("--out", help="Leaderboard folder (default: leaderboards/<suite>)."),
 ]
 
@@ -125,7 +127,7 @@ def evaluate(
         "--reference", help="Folder of reference records (default: "
         "leaderboards/<suite>/records).")] = None,
     store: StoreOpt = None,
-    out: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+    out: Annotated[Optional[str], typer.Option(  # noqa: UP045
         "--out", help="Leaderboard folder (default: leaderboards/<suite>-<encoder>).")] = None,
     workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
         help="Parallel workers (default: CPU count).")] = None,
@@ -163,6 +165,14 @@ def main(argv: list[str] | None = None) -> None:
         app(args=argv, prog_name="repbench", standalone_mode=True)
     except RepbenchError as exc:
         typer.echo(f"repbench: error: {exc}", err=True)
+        sys.exit(2)
+    except OSError as exc:  # a full disk outside the store (leaderboards, figures): one line too
+        from repbench.diskfull import is_disk_full
+
+        if not is_disk_full(exc):
+            raise
+        typer.echo(f"repbench: error: no space left on the disk ({exc}); free some space and "
+                   "run the same command again", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
         _interrupted()

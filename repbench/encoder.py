@@ -214,6 +214,64 @@ class TrueStateEncoder(Encoder):
         return self.state_dim_
 
 
+# -- contract checks on what a fitted encoder returns -----------------------------------------
+# One implementation for the conformance kit (repbench.testing.check_encoder, which turns them
+# into AssertionErrors) and the encoder and latents stages, so a user encoder that breaks the
+# contract stops at its own stage with its name, instead of reaching the metrics.
+
+def check_fit_result(encoder: Encoder, fitted: Any, who: str) -> None:
+    """Raise :class:`DataError` unless ``fit`` returned ``encoder`` itself, now fitted.
+
+    ``who`` names the encoder in the message (e.g. ``"encoder 'mine' (MyEncoder)"``).
+    """
+    if fitted is not encoder:
+        raise DataError(f"{who}: fit must return self, returned {_short(fitted)}; end fit with "
+                        "`return self`")
+    if not encoder.is_fitted:
+        raise DataError(f"{who}: fit must set learned attributes ending in '_' (e.g. "
+                        "self.mean_ = ...); it set none")
+
+
+def check_latent_dim(encoder: Encoder, who: str) -> int:
+    """The fitted encoder's ``latent_dim``; :class:`DataError` unless it is a positive int."""
+    dim = encoder.latent_dim
+    if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
+        raise DataError(f"{who}: latent_dim must be a positive int, got {_short(dim)}")
+    return int(dim)
+
+
+def check_latents(z: Any, n_rows: int, latent_dim: int, who: str, *, float32: bool = True
+                  ) -> np.ndarray:
+    """Check what ``encode`` returned for ``n_rows`` observations; return it.
+
+    It must be a numpy array of finite numbers of shape ``[n_rows, latent_dim]``, and float32
+    when ``float32`` (the contract; the stages pass ``False`` and cast other real dtypes, as
+    the RL wrapper does). Raises :class:`DataError` naming ``who``, what came back and the fix.
+    """
+    fix = "encode must return a float32 array [N, latent_dim], one row per observation"
+    if not isinstance(z, np.ndarray):
+        raise DataError(f"{who}: encode must return a numpy array, got {type(z).__name__}; "
+                        f"{fix}")
+    if z.dtype.kind not in "fiu":
+        raise DataError(f"{who}: encode returned {z.dtype} values, not numbers; {fix}")
+    if float32 and z.dtype != np.float32:
+        raise DataError(f"{who}: encode must return float32, got {z.dtype}; return "
+                        "z.astype(np.float32)")
+    if z.shape != (n_rows, latent_dim):
+        raise DataError(f"{who}: encode returned shape {z.shape} for {n_rows} observations, "
+                        f"expected {(n_rows, latent_dim)} (latent_dim = {latent_dim}); {fix}")
+    if not np.isfinite(z).all():
+        bad = int((~np.isfinite(z)).any(axis=1).sum())
+        raise DataError(f"{who}: encode returned NaN or infinite values in {bad} of {n_rows} "
+                        "rows; check the encoder (diverged training?) and fit it again")
+    return z
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 and "\n" not in text else f"a {type(value).__name__}"
+
+
 def _to_saveable(value: Any) -> Any:
     """numpy arrays → tensors (weights_only can load tensors but not ndarrays)."""
     import torch

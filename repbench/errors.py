@@ -27,6 +27,10 @@ class StoreError(RepbenchError, OSError):
     """The stage store cannot be used (unwritable root, ...)."""
 
 
+class DiskFullError(StoreError):
+    """The disk holding the store is full: the run stops (every later stage would fail)."""
+
+
 class CorruptArtifactError(StoreError):
     """A stored artifact failed its checksum or is incomplete; it will be recomputed."""
 

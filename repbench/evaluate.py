@@ -23,6 +23,7 @@ from repbench.errors import ConfigError
 from repbench.executors import RunReport, make_executor, run_stages
 from repbench.leaderboard import write_leaderboards
 from repbench.plan import build_plan
+from repbench.preflight import check_out_dir
 from repbench.records import identity_key
 from repbench.registry import encoders
 from repbench.results import Results, build_results, installed_versions, load_records, select
@@ -71,6 +72,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     if encoder not in encoders:
         raise ConfigError(encoders._unknown_message(encoder))
     base = load_suite(suite)
+    out_dir = check_out_dir(out if out is not None
+                            else Path("leaderboards") / f"{base.name}-{encoder}")
     ref_dir = reference_dir(base.name, reference)
     dropped: list[str] = []  # reference or new records left out (edited, truncated ...)
     reference_records = load_records(ref_dir, problems=dropped)
@@ -111,7 +114,6 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     if metrics_only:
         res.predictions = predict_from_rows(res.metric_rows, res.rl_rows, encoder)
         res.provenance["evaluated"]["predictions"] = res.predictions
-    out_dir = Path(out) if out is not None else Path("leaderboards") / f"{base.name}-{encoder}"
     write_leaderboards(res, out_dir)
     for w in warnings:
         print(f"warning: {w}", flush=True)

@@ -30,7 +30,7 @@ from typing import Any, Protocol
 
 from tqdm.auto import tqdm
 
-from repbench.errors import ConfigError
+from repbench.errors import ConfigError, DiskFullError
 from repbench.stages import StageSpec, execute
 from repbench.store import Store
 
@@ -67,6 +67,8 @@ def _stage_id(spec: StageSpec) -> str:
 def _execute_catching(spec: StageSpec, root: str) -> dict[str, Any]:
     try:
         return execute(spec, root)
+    except DiskFullError as exc:  # fatal: run_stages stops, every later stage would fail too
+        return {"error": str(exc), "fatal": True}
     except Exception as exc:  # shipped back as data: exceptions from plugins may not pickle
         return {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
 
@@ -242,6 +244,10 @@ def make_executor(kind: str, store_root: str, workers: int | None = None,
         n = workers or os.cpu_count() or 1
         return InProcessExecutor(store_root) if n <= 1 else LocalPoolExecutor(store_root, n)
     if kind == "ray":
+        if ray_address:
+            from repbench.preflight import check_ray_address
+
+            check_ray_address(ray_address)  # before ray.init, which may wait minutes
         return RayExecutor(store_root, ray_address, workers)
     raise ConfigError(f"unknown executor {kind!r}; choose 'local' or 'ray'")
 
@@ -294,6 +300,8 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
             for handle, result in executor.wait_any(list(running)):
                 i = running.pop(handle)
                 spec = by_id[i]
+                if result.get("fatal"):
+                    raise DiskFullError(result["error"])
                 if "error" in result:
                     report.failed[i] = result["error"]
                     echo(f"FAILED {report.labels[i]}: {result['error']}")

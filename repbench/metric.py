@@ -45,12 +45,18 @@ __all__ = ["EXTRA_INPUTS", "ROWS", "Metric", "MetricResult", "check_extra_input"
 
 
 def metric(name: str, *, higher_is_better: bool, description: str = "", min_samples: int = 10,
-           register: bool = True, version: int = 0, rows: str = "all"
+           register: bool = True, version: int = 0, rows: str = "all",
+           check: Callable[..., None] | None = None
            ) -> Callable[[Callable[..., MetricResult]], Metric]:
     """Decorator turning a function into a :class:`Metric` (and registering it by default).
 
     ``rows`` (``"all"`` or ``"on_policy"``) says which rows of the stored latents the metric
     stage computes it on (module docstring).
+
+    ``check``: the metric's range checks, ``check(**params)`` with every tunable parameter
+    (defaults filled in), raising :class:`~repbench.errors.ConfigError`. The planner runs it
+    (after checking names and annotated types, :meth:`Metric.check_params`) so a bad value in
+    a suite file fails before any stage; call it from the metric too.
 
     ``version``: bump it when a change alters the metric's values; stored results of the older
     version then show as stale instead of being reused (:mod:`repbench.records`).
@@ -58,7 +64,7 @@ def metric(name: str, *, higher_is_better: bool, description: str = "", min_samp
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:
         m = Metric(fn, name, higher_is_better, description, min_samples, version=version,
-                   rows=rows)
+                   rows=rows, check=check)
         if register:
             metrics.register(name, m)
         return m

@@ -21,20 +21,25 @@ Register it with the decorator, which also validates inputs before the function 
 from __future__ import annotations
 
 import functools
+import inspect
 import math
-from collections.abc import Callable, Mapping
+import types
+import typing
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from repbench.errors import DataError
+from repbench.errors import ConfigError, DataError
 
 #: Arrays beside (z, z_true, episode) that a metric can ask for by naming a keyword parameter
 #: (see :mod:`repbench.metric`).
 EXTRA_INPUTS = ("robot_state", "task_state", "action", "source")
 #: Which rows of the stored latents a metric is computed on (see :mod:`repbench.metric`).
 ROWS = ("all", "on_policy")
+#: The positional arguments every metric function takes; not parameters a suite can set.
+ARRAY_ARGUMENTS = ("z", "z_true", "episode", "rng")
 
 
 @dataclass(frozen=True)
@@ -70,10 +75,14 @@ class Metric:
 
     def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
                  description: str = "", min_samples: int = 10, needs_episodes: bool = False,
-                 version: int = 0, rows: str = "all") -> None:
+                 version: int = 0, rows: str = "all",
+                 check: Callable[..., None] | None = None) -> None:
         if rows not in ROWS:
             raise ValueError(f"metric {name!r}: rows must be one of {ROWS}, got {rows!r}")
         self.fn = fn
+        #: the metric's own range checks: called with every tunable parameter (defaults filled
+        #: in) as keywords; raises ConfigError (:meth:`check_params`)
+        self.check = check
         #: which rows of the stored latents the metric stage computes it on
         self.rows = rows
         #: declared version of what the metric computes (see :class:`repbench.Encoder.version`)
@@ -106,13 +115,103 @@ class Metric:
     @property
     def extra_inputs(self) -> tuple[str, ...]:
         """The names in :data:`EXTRA_INPUTS` that the function's signature accepts."""
-        import inspect
-
         sig = inspect.signature(self.fn).parameters
         return tuple(k for k in EXTRA_INPUTS if k in sig)
 
+    @property
+    def parameters(self) -> dict[str, inspect.Parameter]:
+        """The tunable parameters: the function's keyword parameters other than the arrays
+        (:data:`ARRAY_ARGUMENTS`, :data:`EXTRA_INPUTS`), in signature order."""
+        skip = {*ARRAY_ARGUMENTS, *EXTRA_INPUTS}
+        return {n: p for n, p in inspect.signature(self.fn).parameters.items()
+                if n not in skip and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+
+    def check_params(self, params: Mapping[str, Any]) -> None:
+        """Raise a one-line :class:`ConfigError` for parameters the metric would refuse.
+
+        Without running the metric (the planner calls it, so a bad value fails before any
+        stage): unknown names (the message lists the tunable parameters only), values whose
+        type does not match the annotation (or, without one, the default's type), and whatever
+        the metric's own ``check`` refuses.
+        """
+        known = self.parameters
+        var_kw = any(p.kind == p.VAR_KEYWORD
+                     for p in inspect.signature(self.fn).parameters.values())
+        unknown = sorted(set(params) - set(known))
+        if unknown and not var_kw:
+            raise ConfigError(f"metric {self.name!r}: unknown parameter(s) {unknown}; valid: "
+                              f"{list(known)}")
+        try:
+            hints = typing.get_type_hints(self.fn)
+        except Exception:  # an annotation that does not resolve: fall back to the defaults
+            hints = {}
+        for key, value in params.items():
+            if key not in known:
+                continue
+            hint = hints.get(key, _default_type(known[key].default))
+            if not _fits(value, hint):
+                raise ConfigError(f"metric {self.name!r}: parameter {key!r} must be "
+                                  f"{_type_name(hint)}, got {value!r}")
+        if self.check is not None:
+            defaults = {k: p.default for k, p in known.items() if p.default is not p.empty}
+            self.check(**{**defaults, **params})
+
     def __repr__(self) -> str:
         return f"<Metric {self.name} ({'higher' if self.higher_is_better else 'lower'} is better)>"
+
+
+def _default_type(default: Any) -> Any:
+    """The type a parameter without an annotation is checked against: its default's."""
+    if default is inspect.Parameter.empty or default is None:
+        return Any
+    return type(default)
+
+
+def _fits(value: Any, hint: Any) -> bool:
+    """Whether ``value`` (as read from TOML) fits the type ``hint``; unknown hints fit."""
+    if hint is Any:
+        return True
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        return any(_fits(value, a) for a in args)
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, (bool, np.bool_))
+    if isinstance(value, (bool, np.bool_)):
+        return False  # True is an int to Python, not a number to a user
+    if hint is int:
+        return isinstance(value, (int, np.integer))
+    if hint is float:
+        return isinstance(value, (int, float, np.number)) and math.isfinite(float(value))
+    if hint is str:
+        return isinstance(value, str)
+    if origin in (tuple, list, Sequence):
+        if not isinstance(value, (list, tuple)):
+            return False
+        if origin is tuple and args and args[-1] is not Ellipsis:
+            return len(value) == len(args) and all(
+                _fits(v, a) for v, a in zip(value, args, strict=True))
+        return all(_fits(v, args[0]) for v in value) if args else True
+    if isinstance(hint, type):
+        return isinstance(value, hint)
+    return True
+
+
+def _type_name(hint: Any) -> str:
+    names = {int: "a whole number", float: "a finite number", bool: "true or false",
+             str: "a string", type(None): "none"}
+    if hint in names:
+        return names[hint]
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        return " or ".join(_type_name(a) for a in typing.get_args(hint))
+    if typing.get_origin(hint) in (tuple, list, Sequence):
+        args = [a for a in typing.get_args(hint) if a is not Ellipsis]
+        if len(set(args)) <= 1:
+            inner = _type_name(args[0]).removeprefix("a ") if args else "value"
+            return f"a list of {inner}s"
+        return f"a list of {len(args)} values"
+    return getattr(hint, "__name__", str(hint))
 
 
 def check_metric_inputs(z: Any, z_true: Any, episode: Any = None, *, name: str = "metric",

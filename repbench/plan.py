@@ -222,6 +222,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             metric_inputs["on_policy"] = _ref(on_policy)
             metric_stages["on_policy"] = on_policy.key
 
+    metric_params = {m: _metric_params(suite, m) for m in suite.metrics}
     training = suite.encoder_training.model_dump()
     for enc_name in suite.encoders:
         cls = encoders.get(enc_name)
@@ -246,10 +247,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                                         encoder=enc_part, data_stages=metric_stages))
         tp.latents[enc_name] = lat
         for m in suite.metrics:
-            fn = metrics.get(m)
-            mparams = {"n_bootstrap": suite.metric_settings.bootstrap,
-                       **suite.metric_params.get(m, {})}
-            check_kwargs(f"metric_params.{m}", fn.fn if hasattr(fn, "fn") else fn, mparams)
+            fn, mparams = metrics.get(m), metric_params[m]
             tp.metrics[(enc_name, m)] = StageSpec(METRIC, jsonable_config({
                 "metric": m, "params": mparams, "seed": suite.metric_settings.seed,
                 "rows": getattr(fn, "rows", "all"), "version": plugin_version(fn)}),
@@ -278,6 +276,22 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                                     encoder=enc_part, agent=agent_part, seed=seed,
                                     budget=budget, data_stages={"random": random_ds.key}))
     return tp
+
+
+def _metric_params(suite: Suite, name: str) -> dict[str, Any]:
+    """The parameters metric ``name`` runs with, checked now (names, types, the metric's own
+    range checks: :meth:`repbench.metric.Metric.check_params`), not when the metric runs."""
+    fn = metrics.get(name)
+    params = {"n_bootstrap": suite.metric_settings.bootstrap, **suite.metric_params.get(name, {})}
+    if not callable(getattr(fn, "check_params", None)):  # not a Metric: check the names only
+        check_kwargs(f"metric_params.{name}", fn, params)
+        return params
+    try:
+        fn.check_params(params)
+    except (RepbenchError, TypeError, ValueError) as exc:
+        raise ConfigError(f"suite {suite.source or suite.name}, field metric_params.{name}: "
+                          f"{exc}") from None
+    return params
 
 
 def _check_privileged(suite: Suite, task_name: str, task_cls: type) -> None:

@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from repbench.dataset import FT, IMAGE
+from repbench.errors import ConfigError
+from repbench.preflight import check_out_file
 from repbench.task import Task
 
 
@@ -20,6 +22,10 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
 
     Each tile shows the wrist image and, beside it, a bar with the force magnitude ``|F|``
     (N) of that step; the title gives the step index. Returns the written path.
+
+    Raises:
+        ConfigError: before the rollout, for ``n_frames < 1``, a negative ``seed``, or an
+            ``out`` that cannot be written (a folder, an unwritable place, an unknown format).
     """
     import matplotlib
 
@@ -28,8 +34,7 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
 
     from repbench.figures import save_figure
 
-    if n_frames < 1:
-        raise ValueError(f"n_frames must be >= 1, got {n_frames}")
+    _check_preview_args(out, n_frames, seed, steps)
     steps = steps or max(n_frames * 4, 40)
     ds = task.collect("random", n_episodes=1, steps_per_episode=steps, seed=seed,
                       progress=False)
@@ -61,3 +66,17 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
                  + (f", contact share {share:.0%})" if share is not None else ")"), fontsize=9)
     fig.tight_layout()
     return save_figure(fig, out, tight=False)
+
+
+def _check_preview_args(out: str | Path, n_frames: int, seed: int, steps: int | None) -> None:
+    """One-line ConfigErrors naming the option (as the CLI spells it) and the fix."""
+    def integer(v: object) -> bool:
+        return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+    if not integer(n_frames) or n_frames < 1:
+        raise ConfigError(f"--frames must be a whole number >= 1, got {n_frames!r}")
+    if not integer(seed) or seed < 0:
+        raise ConfigError(f"--seed must be a whole number >= 0, got {seed!r}")
+    if steps is not None and (not integer(steps) or steps < 1):
+        raise ConfigError(f"preview steps must be a whole number >= 1, got {steps!r}")
+    check_out_file(out)

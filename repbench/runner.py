@@ -14,6 +14,7 @@ from repbench.errors import ConfigError, RepbenchError
 from repbench.executors import RunReport, make_executor, run_stages
 from repbench.leaderboard import write_leaderboards
 from repbench.plan import Plan, build_plan
+from repbench.preflight import check_out_dir
 from repbench.records import identity_key
 from repbench.results import Results, build_results, installed_versions, load_records, select
 from repbench.store import Store
@@ -45,6 +46,7 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     start = time.time()
     check_workers(workers)
     s = load_suite(suite)
+    out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
     st = Store(store)
     plan = build_plan(s)
     stages = plan.stages()
@@ -55,7 +57,6 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
           f"store {st.root}; executor {executor} ({ex.capacity} workers)", flush=True)
     report = run_stages(stages, st, ex, progress=progress)
     print(f"stages: {report.summary()}", flush=True)
-    out_dir = Path(out) if out is not None else default_out_dir(s.name)
     results = collect_results(plan, st)
     write_leaderboards(results, out_dir)
     if report.failed:
@@ -175,6 +176,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     computed from those records alone, without a store or a plan.
     """
     s = load_suite(suite)
+    out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
     if records is not None:
         where = f"records folder {records}"
         problems: list[str] = []
@@ -187,5 +189,4 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     if not (results.encoder_rows or results.metric_rows or results.rl_rows):
         raise RepbenchError(f"no results of suite {s.name!r} in {where}; run "
                             f"`repbench run --suite {suite}` with the same --store first")
-    out_dir = Path(out) if out is not None else default_out_dir(s.name)
     return write_leaderboards(results, out_dir)

@@ -21,6 +21,7 @@ import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
+from repbench.diskfull import stop_when_full
 from repbench.records import RECORD_FILE, make_record, write_record
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.store import Store, stage_key
@@ -107,15 +108,32 @@ def _run_full_state(spec: StageSpec, store: Store, w: Any) -> None:
     w.write_json(result.to_dict())
 
 
+#: Rows of the training data the encoder stage encodes to check the fitted encoder's output.
+CHECK_ROWS = 8
+
+
+def _encoder_label(name: str, enc: Any) -> str:
+    return f"encoder {name!r} ({type(enc).__name__})"
+
+
 def _run_encoder(spec: StageSpec, store: Store, w: Any) -> None:
+    from repbench.encoder import check_fit_result, check_latent_dim, check_latents
+
     cfg = spec.config
     cls = encoders.get(cfg["encoder"])
     dataset = _load_dataset(store, spec.inputs["dataset"][1])
     start = time.time()
-    enc = cls(**cfg["params"]).fit(dataset)
+    enc = cls(**cfg["params"])
+    fitted = enc.fit(dataset)
     fit_time = time.time() - start
-    enc.save(w.file("encoder.pt"))
-    w.write_json({"latent_dim": int(enc.latent_dim), "fit_time_s": fit_time,
+    # the conformance kit's checks, so a broken encoder stops here, not in the metrics or RL
+    who = _encoder_label(cfg["encoder"], enc)
+    check_fit_result(enc, fitted, who)
+    dim = check_latent_dim(enc, who)
+    enc.save(w.file("encoder.pt"))  # before encoding: the stored encoder is the one fit made
+    n = min(len(dataset), CHECK_ROWS)
+    check_latents(enc.encode(dataset.obs(slice(0, n))), n, dim, who, float32=False)
+    w.write_json({"latent_dim": dim, "fit_time_s": fit_time,
                   "params": enc.get_params(), "family": str(getattr(cls, "family", "learned")),
                   **_save_fit_history(enc, cfg["encoder"], w)})
     figure = getattr(enc, "save_reconstruction_figure", None)
@@ -156,18 +174,24 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
     on-policy dataset the privileged agent's), ``robot_state`` (``Task.robot_state``: what the
     agent sees beside z) and ``task_state`` (``Task.task_state``; absent for a task without one).
     """
-    from repbench.encoder import Encoder
+    from repbench.encoder import Encoder, check_latent_dim, check_latents
 
     enc_art = store.get(ENCODER, spec.inputs["encoder"][1])
     assert enc_art is not None
     enc = Encoder.load(enc_art.file("encoder.pt"))
+    who = _encoder_label(spec.config["encoder"], enc)
+    dim = check_latent_dim(enc, who)
     parts = [(name, _load_dataset(store, key)) for name, (kind, key) in sorted(spec.inputs.items())
              if kind == DATASET]
     data = Dataset.concatenate([d for _, d in parts])
     source = np.concatenate([np.full(len(d), i) for i, (_, d) in enumerate(parts)])
     batch = 256
-    z = np.concatenate([enc.encode(data.obs(slice(i, i + batch)))
-                        for i in range(0, len(data), batch)])
+    # every batch checked (shape [rows, latent_dim], real numbers, finite) before it is stored:
+    # a latent of the wrong width must never reach a metric
+    z = np.concatenate([
+        check_latents(enc.encode(data.obs(slice(i, i + batch))), min(batch, len(data) - i), dim,
+                      who, float32=False)
+        for i in range(0, len(data), batch)])
     arrays: dict[str, np.ndarray] = {
         "z": z.astype(np.float32), "z_true": data.true_state, "episode": data.episode,
         "step": data.step, "source": source, "source_names": np.array([n for n, _ in parts]),
@@ -181,7 +205,7 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
         except NotImplementedError as exc:
             notes["task_state"] = str(exc)
     np.savez_compressed(w.file("latents.npz"), **arrays)
-    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": z.shape[1],
+    w.write_json({"sources": [n for n, _ in parts], "n": len(data), "latent_dim": dim,
                   "arrays": sorted(arrays), **notes})
 
 
@@ -316,9 +340,11 @@ def _compute(spec: StageSpec, store: Store) -> dict[str, Any]:
     start = time.time()
     # an artifact is committed only if its stage ran to the end without a Ctrl-C, whatever
     # the plugin did with the KeyboardInterrupt: raising inside ``store.write`` discards it
-    with interrupts_recorded() as interrupted, store.write(
-            spec.kind, key, config=spec.config, inputs=[k for _, k in spec.inputs.values()],
-            seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
+    with interrupts_recorded() as interrupted, \
+            stop_when_full(f"stage {spec.label or spec.kind!r}", f"store {store.root}"), \
+            store.write(spec.kind, key, config=spec.config,
+                        inputs=[k for _, k in spec.inputs.values()],
+                        seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
         cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)

@@ -174,6 +174,9 @@ class Store:
     """
 
     def __init__(self, root: str | os.PathLike[str] | None = None) -> None:
+        if root is not None and not str(root).strip():  # Path("") would be the current folder
+            raise StoreError("--store is empty; pass the store folder, or leave the option out "
+                             f"for ${STORE_ENV_VAR} or the default {default_store_root()}")
         self.root = Path(root).expanduser() if root is not None else default_store_root()
         try:
             (self.root / ".tmp").mkdir(parents=True, exist_ok=True)

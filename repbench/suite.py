@@ -17,6 +17,10 @@ Defaults: ``agents = ["sac"]``, ``seeds = [0, 1, 2]``; ``[dataset]`` 25 × 300 r
 10 × 100 on-policy steps, seed 0; ``[encoder_training]`` latent_dim 16, 3 epochs, batch 64,
 seed 0; ``[rl]`` 6000 train steps, 10 evaluation episodes, 5 curve points, 20 000 steps for the
 full-state agent; ``[metric_settings]`` 100 bootstrap resamples, seed 0.
+
+Values are checked strictly, as TOML writes them: ``train_steps = "60"`` (a string) is refused,
+not converted; RL seeds are distinct and non-negative; step budgets are at most
+:data:`MAX_TRAIN_STEPS`.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    NonNegativeInt,
     PositiveInt,
     ValidationError,
     field_validator,
@@ -39,10 +44,14 @@ from pydantic import (
 from repbench.errors import ConfigError
 
 BUILTIN_SUITES = ("smoke", "quick", "paper")
+#: Upper bound of an RL step budget (``rl.train_steps``, ``rl.full_state_train_steps``): 10⁹
+#: steps is years of SAC on one machine; a larger value is a typo.
+MAX_TRAIN_STEPS = 10**9
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict: a TOML file has real types; "60" for an int is a mistake, not something to coerce
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class DatasetConfig(_Strict):
@@ -89,14 +98,13 @@ class EncoderTrainingConfig(_Strict):
 class RLConfig(_Strict):
     """Downstream-RL budgets."""
 
-    train_steps: PositiveInt = Field(default=10000, description="environment steps per training "
-                                                               "run (paper: 150k)")
+    train_steps: PositiveInt = Field(default=10000, le=MAX_TRAIN_STEPS, description=(
+        "environment steps per training run (paper: 150k; at most 10⁹)"))
     eval_episodes: PositiveInt = Field(default=30, description="fixed evaluation episodes "
                                                                "(paper: 20k steps)")
     curve_points: PositiveInt = Field(default=5, description="learning-curve evaluations")
-    full_state_train_steps: PositiveInt = Field(default=20000, description="steps for the "
-                                                "privileged SAC agent that collects the "
-                                                "on-policy dataset")
+    full_state_train_steps: PositiveInt = Field(default=20000, le=MAX_TRAIN_STEPS, description=(
+        "steps for the privileged SAC agent that collects the on-policy dataset (at most 10⁹)"))
     privileged_encoder: str = Field(default="oracle_task", description="what the privileged "
                                     "agent observes beside the robot state")
     privileged_params: dict[str, Any] = Field(
@@ -120,7 +128,8 @@ class Suite(_Strict):
     encoders: list[str] = Field(min_length=1)
     metrics: list[str] = Field(min_length=1)
     agents: list[str] = Field(default=["sac"], min_length=1)
-    seeds: list[int] = Field(default=[0, 1, 2], min_length=1, description="RL seeds")
+    seeds: list[NonNegativeInt] = Field(default=[0, 1, 2], min_length=1,
+                                        description="RL seeds (distinct, >= 0)")
     dataset: DatasetConfig = DatasetConfig()
     encoder_training: EncoderTrainingConfig = EncoderTrainingConfig()
     rl: RLConfig = RLConfig()
@@ -134,9 +143,9 @@ class Suite(_Strict):
     agent_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     source: str = Field(default="", exclude=True, description="file the suite was read from")
 
-    @field_validator("tasks", "encoders", "metrics", "agents")
+    @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod
-    def _unique(cls, v: list[str]) -> list[str]:
+    def _unique(cls, v: list[Any]) -> list[Any]:
         dupes = sorted({x for x in v if v.count(x) > 1})
         if dupes:
             raise ValueError(f"listed more than once: {dupes}")
@@ -190,7 +199,17 @@ def _read_suite_text(name_or_path: str | Path) -> tuple[str, str]:
             f"suite {name!r} is neither a built-in suite ({', '.join(BUILTIN_SUITES)}) nor an "
             "existing file; check the name or path"
         )
-    return path.read_text(), str(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"suite file {path} cannot be read ({exc.strerror or exc}); check its "
+                          "permissions") from None
+    try:
+        return raw.decode("utf-8"), str(path)
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ConfigError(f"suite file {path} is not UTF-8 text (byte {raw[exc.start]:#04x} on "
+                          f"line {line}); save it as UTF-8") from None
 
 
 def _first_error(exc: ValidationError) -> str:
@@ -201,6 +220,10 @@ def _first_error(exc: ValidationError) -> str:
         msg = err["msg"]
         if err["type"] == "extra_forbidden":
             msg = "unknown key (misspelled?)"
+        elif err["type"].endswith("_type") and isinstance(err.get("input"), str):
+            msg += f", got the string {err['input']!r} (write numbers and booleans unquoted)"
+        elif isinstance(err.get("input"), (bool, int, float)):
+            msg += f", got {err['input']!r}"
         parts.append(f"field {loc!r}: {msg}")
     more = f" (and {len(errors) - 3} more)" if len(errors) > 3 else ""
     return "; ".join(parts) + more

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -93,6 +93,19 @@ class PegInHoleConfig:
         """Raise :class:`ConfigError` (one line, naming the field and the fix) on a bad value."""
         def bad(name: str, msg: str) -> ConfigError:
             return ConfigError(f"PegInHole-v0: {name}={getattr(self, name)!r} {msg}")
+
+        def number(v: Any) -> bool:
+            return isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
+
+        for f in fields(self):  # types first: "wide" for a float must name the field, not numpy
+            v = getattr(self, f.name)
+            if f.type == "float" and not number(v):
+                raise bad(f.name, f"must be a number (default {f.default!r})")
+            if f.type == "bool" and not isinstance(v, (bool, np.bool_)):
+                raise bad(f.name, "must be true or false")
+            if f.type == "tuple[float, float]" and not (
+                    isinstance(v, (tuple, list)) and len(v) == 2 and all(map(number, v))):
+                raise bad(f.name, f"must be a pair of numbers (default {list(f.default)!r})")
 
         if not isinstance(self.horizon, (int, np.integer)) or self.horizon < 1:
             raise bad("horizon", "must be a positive integer number of steps")

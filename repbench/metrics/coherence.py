@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -33,7 +35,12 @@ def knn_mse_terms(z: np.ndarray, z_true: np.ndarray, k: int = 5) -> np.ndarray:
     return ((z_true[nb] - z_true[:, None, :]) ** 2).sum(-1).mean(1)
 
 
-@metric("coherence", higher_is_better=False,
+def _check_coherence(*, k: int, **_: Any) -> None:
+    """Range checks of :func:`coherence`'s parameters (the planner runs them too)."""
+    check_params("coherence", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+
+
+@metric("coherence", higher_is_better=False, check=_check_coherence,
         version=2,  # v1: standardized z by default; v2: episode resamples from
         # resampling_stream, paired across encoders
         description="KNN-MSE (Raffin 2018): mean squared z° distance to the k=5 nearest in z")
@@ -55,7 +62,7 @@ def coherence(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ra
     2 tr Cov · n/(n − 1). CI: bootstrap over episodes of the per-sample errors (neighbours
     held fixed).
     """
-    check_params("coherence", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+    _check_coherence(k=k)
     zv, dropped = drop_constant(z)
     zt = z_true[:, np.ptp(z_true, axis=0) > 0]
     if zt.shape[1] == 0:

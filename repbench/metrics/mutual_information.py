@@ -198,7 +198,12 @@ def _ksg_result(x: np.ndarray, y: np.ndarray, episode: np.ndarray, rng: np.rando
 
 
 # -- metrics -------------------------------------------------------------------------------------
-@metric("ksg", higher_is_better=True,
+def _check_ksg(*, k: int, **_: Any) -> None:
+    """Range checks of :func:`ksg`'s parameters (the planner runs them too)."""
+    check_params("ksg", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+
+
+@metric("ksg", higher_is_better=True, check=_check_ksg,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="KSG kNN estimate of I(z; z°) in nats on standardized inputs (ranking only)")
 def ksg(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator, *,
@@ -212,14 +217,20 @@ def ksg(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.G
     bootstrap over episodes of the per-sample KSG terms (neighbour counts held fixed;
     resampling rows would create duplicate points, which the estimator cannot handle).
     """
-    check_params("ksg", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+    _check_ksg(k=k)
     x, y, notes = _prepare(z, z_true, "ksg")
     if x.shape[1] == 0:
         return MetricResult(0.0, True, 0.0, 0.0, extras={**notes, "note": "z is constant"})
     return _ksg_result(x, y, episode, rng, int(k), n_bootstrap, notes)
 
 
-@metric("mi_noisy", higher_is_better=True,
+def _check_mi_noisy(*, noise: float, k: int, **_: Any) -> None:
+    """Range checks of :func:`mi_noisy`'s parameters (the planner runs them too)."""
+    check_params("mi_noisy", noise=(float(noise) > 0, f"must be > 0, got {noise}"),
+                 k=(int(k) >= 1, f"must be >= 1, got {k}"))
+
+
+@metric("mi_noisy", higher_is_better=True, check=_check_mi_noisy,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="I(standardized z + σ·noise; z°) in nats: finite, comparable across encoders")
 def mi_noisy(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
@@ -235,8 +246,7 @@ def mi_noisy(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ran
     noise draw comes from ``rng`` (fixed seed → fixed value). Constant z columns are dropped;
     a fully constant z scores 0.
     """
-    check_params("mi_noisy", noise=(float(noise) > 0, f"must be > 0, got {noise}"),
-                 k=(int(k) >= 1, f"must be >= 1, got {k}"))
+    _check_mi_noisy(noise=noise, k=k)
     x, y, notes = _prepare(z, z_true, "mi_noisy")
     if x.shape[1] == 0:
         return MetricResult(0.0, True, 0.0, 0.0, extras={**notes, "note": "z is constant"})
@@ -247,7 +257,22 @@ def mi_noisy(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ran
                        {**notes, "noise": float(noise), "channel_capacity": capacity})
 
 
-@metric("mine", higher_is_better=True,
+def _check_mine(*, hidden: int, learning_rate: float, batch_size: int, ema_decay: float,
+                steps: int, test_fraction: float, eval_every: int, average_last: int,
+                **_: Any) -> None:
+    """Range checks of :func:`mine`'s parameters (the planner runs them too)."""
+    check_params(
+        "mine", hidden=(int(hidden) >= 1, "must be >= 1"),
+        learning_rate=(float(learning_rate) > 0, "must be > 0"),
+        batch_size=(int(batch_size) >= 2, "must be >= 2"),
+        ema_decay=(0 < float(ema_decay) <= 1, "must be in (0, 1]"),
+        steps=(int(steps) >= 1, "must be >= 1"), eval_every=(int(eval_every) >= 1, "must be >= 1"),
+        average_last=(int(average_last) >= 1, "must be >= 1"),
+        test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
+    )
+
+
+@metric("mine", higher_is_better=True, check=_check_mine,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="MINE estimate of I(z; z°) in nats on held-out episodes (paper's settings)")
 def mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator, *,
@@ -296,14 +321,9 @@ def _mine(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random
           device: str, progress: bool, n_bootstrap: int) -> MetricResult:
     import torch
 
-    check_params(
-        "mine", hidden=(int(hidden) >= 1, "must be >= 1"),
-        learning_rate=(float(learning_rate) > 0, "must be > 0"),
-        batch_size=(int(batch_size) >= 2, "must be >= 2"),
-        ema_decay=(0 < float(ema_decay) <= 1, "must be in (0, 1]"),
-        steps=(int(steps) >= 1, "must be >= 1"), eval_every=(int(eval_every) >= 1, "must be >= 1"),
-        average_last=(int(average_last) >= 1, "must be >= 1"),
-    )
+    _check_mine(hidden=hidden, learning_rate=learning_rate, batch_size=batch_size,
+                ema_decay=ema_decay, steps=steps, test_fraction=test_fraction,
+                eval_every=eval_every, average_last=average_last)
     from repbench.dataset import episode_split
 
     zv, dropped = drop_constant(z)

@@ -35,14 +35,23 @@ from repbench.metrics.task_information import held_out_r2, r2_of
 __all__ = ["action_probe", "probe_r2", "task_probe"]
 
 
+def _probe_check(name: str) -> Any:
+    """Range checks of probe metric ``name``'s parameters (the planner runs them too)."""
+    def check(*, hidden: Any, test_fraction: float, max_iter: int, **_: Any) -> None:
+        check_params(name, test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
+                     max_iter=(int(max_iter) >= 1, "must be >= 1"),
+                     hidden=(all(int(h) >= 1 for h in hidden), "must list layer sizes >= 1"))
+
+    return check
+
+
 def probe_r2(name: str, z: np.ndarray, robot_state: np.ndarray, target: np.ndarray,
              episode: np.ndarray, rng: np.random.Generator, *, hidden: tuple[int, ...],
              max_iter: int, test_fraction: float, n_bootstrap: int) -> MetricResult:
     """Held-out R² of ``target`` from z ⊕ robot state, beside the robot-state-only R²."""
     from repbench.dataset import episode_split
 
-    check_params(name, test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
-                 max_iter=(int(max_iter) >= 1, "must be >= 1"))
+    _probe_check(name)(hidden=hidden, test_fraction=test_fraction, max_iter=max_iter)
     zv, dropped = drop_constant(z)
     rv, dropped_r = drop_constant(robot_state)
     tv = target[:, np.ptp(target, axis=0) > 0]
@@ -71,7 +80,7 @@ def probe_r2(name: str, z: np.ndarray, robot_state: np.ndarray, target: np.ndarr
     return MetricResult(value, True, lo, hi, extras=extras)
 
 
-@metric("task_probe", higher_is_better=True,
+@metric("task_probe", higher_is_better=True, check=_probe_check("task_probe"),
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out R² of a linear probe from z ⊕ robot state to the task-frame state")
 def task_probe(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
@@ -96,6 +105,7 @@ def task_probe(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
 
 
 @metric("action_probe", higher_is_better=True, rows="on_policy",
+        check=_probe_check("action_probe"),
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out R² of a linear probe from z ⊕ robot state to the expert's action")
 def action_probe(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,

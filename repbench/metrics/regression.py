@@ -46,7 +46,17 @@ def _fit_predict(x_tr: np.ndarray, y_tr: np.ndarray, x_te: np.ndarray, hidden: t
     return np.asarray(model.predict(x_te)).reshape(x_te.shape[0], -1)
 
 
-@metric("regression", higher_is_better=False,
+def _check_regression(*, hidden: Any, test_fraction: float, max_iter: int,
+                      learning_rate: float, **_: Any) -> None:
+    """Range checks of :func:`regression`'s parameters (the planner runs them too)."""
+    check_params("regression",
+                 test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
+                 max_iter=(int(max_iter) >= 1, "must be >= 1"),
+                 learning_rate=(float(learning_rate) > 0, "must be > 0"),
+                 hidden=(all(int(h) >= 1 for h in hidden), "must list layer sizes >= 1"))
+
+
+@metric("regression", higher_is_better=False, check=_check_regression,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out (whole episodes) normalized L2 error of an MLP 64-64 from z to z°")
 def regression(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
@@ -66,9 +76,8 @@ def regression(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
     """
     from repbench.dataset import episode_split
 
-    check_params("regression",
-                 test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
-                 max_iter=(int(max_iter) >= 1, "must be >= 1"))
+    _check_regression(hidden=hidden, test_fraction=test_fraction, max_iter=max_iter,
+                      learning_rate=learning_rate)
     hidden = tuple(int(h) for h in hidden)
     zv, dropped = drop_constant(z)
     const_true = np.ptp(z_true, axis=0) == 0

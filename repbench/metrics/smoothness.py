@@ -59,7 +59,13 @@ def latent_distance_curve(z: np.ndarray, episode: np.ndarray,
     return out
 
 
-@metric("smoothness", higher_is_better=False, rows="on_policy",
+def _check_smoothness(*, offsets: Any, bins: int, **_: Any) -> None:
+    """Range checks of :func:`smoothness`'s parameters (the planner runs them too)."""
+    check_params("smoothness", bins=(int(bins) >= 1, "must be >= 1"),
+                 offsets=(all(int(t) >= 1 for t in offsets), "must list step offsets >= 1"))
+
+
+@metric("smoothness", higher_is_better=False, rows="on_policy", check=_check_smoothness,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Mean of ‖z_n − z_n+1‖ / ‖z°_n − z°_n+1‖ within episodes, scale-normalized")
 def smoothness(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
@@ -76,7 +82,7 @@ def smoothness(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.r
     curve E‖z_n − z_{n+T}‖ (raw and normalized), quantiles. CI: bootstrap over episodes.
     A fully constant z is rejected (the normalized ratio is 0/0).
     """
-    check_params("smoothness", bins=(int(bins) >= 1, "must be >= 1"))
+    _check_smoothness(offsets=offsets, bins=bins)
     i, j = successor_index(episode, None, 1)
     if i.size < 2:
         raise DataError("smoothness: needs at least 2 pairs of successive steps in one episode; "
@@ -133,7 +139,16 @@ def jacobian_bound(mean_sq_step: float, dim: int, alpha: float) -> float:
     return 0.5 * dim * (math.log(mean_sq_step) - math.log(alpha * dim))
 
 
+def _check_smoothness_objective(*, k: int, alpha: str | float, **_: Any) -> None:
+    """Range checks of :func:`smoothness_objective`'s parameters (the planner runs them too)."""
+    check_params("smoothness_objective", k=(int(k) >= 1, f"must be >= 1, got {k}"),
+                 alpha=(alpha in ("per_dim", "scalar") if isinstance(alpha, str)
+                        else float(alpha) > 0,
+                        f"must be 'per_dim', 'scalar' or a number > 0, got {alpha!r}"))
+
+
 @metric("smoothness_objective", higher_is_better=True, rows="on_policy",
+        check=_check_smoothness_objective,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="H(z) − E ln|J_g| with the paper's bound on ln|J_g| (kNN entropy, k=5)")
 def smoothness_objective(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
@@ -153,7 +168,7 @@ def smoothness_objective(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
     −∞ − (−∞)); a fully constant z is rejected. CI: bootstrap over episodes of the entropy
     terms and latent steps (neighbours and α held fixed).
     """
-    check_params("smoothness_objective", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+    _check_smoothness_objective(k=k, alpha=alpha)
     zv, dropped = drop_constant(z)
     if zv.shape[1] == 0:
         raise DataError("smoothness_objective: z is constant; its entropy is -inf")
@@ -169,8 +184,7 @@ def smoothness_objective(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
             raise DataError(f"smoothness_objective: alpha must be 'per_dim', 'scalar' or a "
                             f"positive number, got {alpha!r}")
     else:
-        alpha_used = float(alpha)
-        check_params("smoothness_objective", alpha=(alpha_used > 0, "must be > 0"))
+        alpha_used = float(alpha)  # > 0: _check_smoothness_objective
     i, j = successor_index(episode, None, 1)
     step_sq = np.full(len(zv), np.nan)
     step_sq[i] = ((zv[j] - zv[i]) ** 2).sum(axis=1)

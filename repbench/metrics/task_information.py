@@ -154,7 +154,12 @@ def _prepare(name: str, z: np.ndarray, task_state: np.ndarray | None,
     return zv, rv, task_state[:, keep], notes
 
 
-@metric("task_cmi", higher_is_better=True,
+def _check_task_cmi(*, k: int, **_: Any) -> None:
+    """Range checks of :func:`task_cmi`'s parameters (the planner runs them too)."""
+    check_params("task_cmi", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+
+
+@metric("task_cmi", higher_is_better=True, check=_check_task_cmi,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="I(z; task state | robot state) in nats: kNN CMI (Frenzel–Pompe), ranking")
 def task_cmi(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.random.Generator,
@@ -169,7 +174,7 @@ def task_cmi(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray, rng: np.ran
     column, or no complementary column, scores 0. CI: percentile bootstrap over episodes of the
     per-sample terms (neighbour counts held fixed). ``z_true`` is not used.
     """
-    check_params("task_cmi", k=(int(k) >= 1, f"must be >= 1, got {k}"))
+    _check_task_cmi(k=k)
     zv, rv, c, notes = _prepare("task_cmi", z, task_state, robot_state, determined_tol)
     if zv.shape[1] == 0 or c.shape[1] == 0:
         why = "z is constant" if zv.shape[1] == 0 else "robot state determines the task state"
@@ -232,7 +237,16 @@ def r2_of(err: np.ndarray, dev: np.ndarray) -> float:
     return float(1.0 - err.sum() / max(float(dev.sum()), 1e-300))
 
 
-@metric("task_r2_gain", higher_is_better=True,
+def _check_task_r2_gain(*, hidden: Any, test_fraction: float, max_iter: int, **_: Any
+                        ) -> None:
+    """Range checks of :func:`task_r2_gain`'s parameters (the planner runs them too)."""
+    check_params("task_r2_gain",
+                 test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
+                 max_iter=(int(max_iter) >= 1, "must be >= 1"),
+                 hidden=(all(int(h) >= 1 for h in hidden), "must list layer sizes >= 1"))
+
+
+@metric("task_r2_gain", higher_is_better=True, check=_check_task_r2_gain,
         version=1,  # v1: episode resamples from resampling_stream, paired across encoders
         description="Held-out R² of the task state from z ⊕ robot state minus from robot state")
 def task_r2_gain(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
@@ -257,9 +271,7 @@ def task_r2_gain(z: np.ndarray, z_true: np.ndarray, episode: np.ndarray,
     """
     from repbench.dataset import episode_split
 
-    check_params("task_r2_gain",
-                 test_fraction=(0 < float(test_fraction) < 1, "must be in (0, 1)"),
-                 max_iter=(int(max_iter) >= 1, "must be >= 1"))
+    _check_task_r2_gain(hidden=hidden, test_fraction=test_fraction, max_iter=max_iter)
     zv, rv, c, notes = _prepare("task_r2_gain", z, task_state, robot_state, determined_tol)
     if c.shape[1] == 0:
         return MetricResult(0.0, True, 0.0, 0.0,

@@ -10,17 +10,18 @@ Example::
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import inspect
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from repbench.dataset import Dataset
-from repbench.encoder import Encoder
+from repbench.encoder import Encoder, check_fit_result, check_latent_dim, check_latents
 from repbench.errors import DataError, RepbenchError
 
 #: Constructor arguments check_encoder sets (when the encoder accepts them and the caller did
@@ -86,20 +87,13 @@ def check_encoder(plugin: str | type[Encoder] | Encoder, dataset: Dataset | None
 
     # -- fit and encode ------------------------------------------------------------------------
     fitted = enc.fit(dataset)
-    assert fitted is enc, f"{name}.fit must return self, returned {fitted!r}"
-    assert enc.is_fitted, f"{name}.fit must set learned attributes ending in '_'"
-    dim = enc.latent_dim
-    assert isinstance(dim, (int, np.integer)) and dim >= 1, (
-        f"{name}.latent_dim must be a positive int, got {dim!r}"
-    )
+    with _as_assertion():  # the checks the encoder and latents stages run too
+        check_fit_result(enc, fitted, name)
+        dim = check_latent_dim(enc, name)
     before = copy.deepcopy(obs)
     z = enc.encode(obs)
-    assert isinstance(z, np.ndarray), f"{name}.encode must return a numpy array, got {type(z)}"
-    assert z.dtype == np.float32, f"{name}.encode must return float32, got {z.dtype}"
-    assert z.shape == (len(dataset), dim), (
-        f"{name}.encode returned shape {z.shape}, expected {(len(dataset), dim)}"
-    )
-    assert np.isfinite(z).all(), f"{name}.encode returned NaN or infinite values"
+    with _as_assertion():
+        check_latents(z, len(dataset), dim, name)  # float32, [N, latent_dim], finite
     for key, value in before.items():
         assert np.array_equal(obs[key], value), f"{name}.encode modified its input {key!r}"
     assert np.array_equal(enc.encode(obs), z), f"{name}.encode is not deterministic"
@@ -182,6 +176,15 @@ def _resolve(plugin: Any, params: dict[str, Any]) -> tuple[type[Encoder], dict[s
     kwargs.update(base)
     kwargs.update(params)
     return cls, kwargs
+
+
+@contextlib.contextmanager
+def _as_assertion() -> Iterator[None]:
+    """The shared contract checks raise DataError; the conformance kit reports AssertionError."""
+    try:
+        yield
+    except DataError as exc:
+        raise AssertionError(str(exc)) from None
 
 
 def _rows(obs: Mapping[str, np.ndarray], index: slice) -> dict[str, np.ndarray]:

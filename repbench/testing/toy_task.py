@@ -153,6 +153,28 @@ class ToyReachTask(Task):
         self.image_size = image_size
         self.max_speed = max_speed
         self.success_radius = success_radius
+        self.check_params()  # a bad value fails at construction, so at plan time
+
+    def check_params(self) -> None:
+        """Raise a one-line :class:`ConfigError` naming the first invalid parameter."""
+        def whole(v: Any) -> bool:
+            return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+        def real(v: Any) -> bool:
+            return isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and bool(
+                np.isfinite(v))
+
+        checks = {
+            "horizon": (whole(self.horizon) and self.horizon >= 1, "a whole number >= 1"),
+            "image_size": (whole(self.image_size) and 8 <= self.image_size <= 512,
+                           "a whole number in [8, 512]"),
+            "max_speed": (real(self.max_speed) and self.max_speed > 0, "a number > 0"),
+            "success_radius": (real(self.success_radius) and self.success_radius > 0,
+                               "a number > 0"),
+        }
+        for name, (ok, what) in checks.items():
+            if not ok:
+                raise ConfigError(f"{self.task_id}: {name}={getattr(self, name)!r} must be {what}")
 
     def make_env(self, seed: int | None = None, **overrides: Any) -> ToyReachEnv:
         """A fresh environment; ``seed`` seeds its first ``reset``."""
