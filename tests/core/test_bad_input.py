@@ -539,6 +539,9 @@ def test_full_disk_in_a_worker_stops_run_stages(tmp_path: Path,
         def shutdown(self) -> None:
             self.closed = True
 
+        def abort(self) -> None:  # run_stages stops its executor at once on a fatal error
+            self.closed = True
+
     specs = [StageSpec(DATASET, {"n": i}, label=f"d{i}") for i in range(4)]
     ex = Failing()
     with pytest.raises(DiskFullError, match=r"no space left \(d0\)"):
@@ -549,7 +552,7 @@ def test_full_disk_in_a_worker_stops_run_stages(tmp_path: Path,
         raise DiskFullError("no space left on the disk of store x")
 
     monkeypatch.setattr("repbench.executors.execute", full)
-    assert _execute_catching(specs[0], str(tmp_path), 1) == {
+    assert _execute_catching(specs[0], str(tmp_path)) == {
         "error": "no space left on the disk of store x", "fatal": True}
 
 
