@@ -148,3 +148,110 @@ def test_env_steps_without_rendering(benchmark):
     for env in envs.values():
         env.close()
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+# -- issue 20: the levers of a cheaper RL stage, each old vs new in the same run ----------------
+
+def _filled_model(agent: SACAgent) -> Any:
+    """A SAC model on the toy task (22 features, as a 16-D latent ⊕ 6-D robot state) with a
+    filled replay buffer, ready to time gradient updates."""
+    task = ToyReachTask(horizon=50)
+    enc = TrueStateEncoder().fit(task.collect("random", n_episodes=2, steps_per_episode=20,
+                                              seed=0, progress=False))
+    model = agent.build_model(make_encoded_env(task, enc, seed=0), seed=0, buffer_size=2000)
+    model.learn(total_timesteps=600, progress_bar=False)  # fills the buffer, warms up
+    return model
+
+
+def test_sac_update_width_256_vs_128(benchmark):
+    """SB3 SAC gradient updates/s with quick's 256×256 networks vs the paper's 128×128, one
+    torch thread, alternating rounds in the same run."""
+    models = {w: _filled_model(SACAgent(hidden_sizes=(w, w), learning_starts=0,
+                                        progress=False)) for w in (256, 128)}
+    rates: dict[int, list[float]] = {w: [] for w in models}
+    with torch_threads(1):
+        for _ in range(3):
+            for w, model in models.items():
+                rates[w].append(_updates_per_s(model, 200))
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    benchmark.extra_info.update({f"width_{k}_updates_per_s": v for k, v in med.items()})
+    benchmark.extra_info["w128_over_w256"] = med[128] / med[256]
+    print(f"\n[SAC update] updates/s 256x256 {med[256]:.0f}, 128x128 {med[128]:.0f}; "
+          f"128/256 = {med[128] / med[256]:.2f}")
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+def test_sac_update_sb3_vs_sbx(benchmark):
+    """SB3 (torch) vs SBX (JAX) SAC gradient updates/s, 256×256, one thread each, same run.
+    SBX is not a dependency: with robosuite's numpy < 2 pin only jax <= 0.7 installs, and this
+    benchmark measured no gain with it (issue 20); it runs where SBX is installed."""
+    import os
+
+    os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false "
+                                       "intra_op_parallelism_threads=1")
+    sbx = pytest.importorskip("sbx")
+    import gymnasium as gym
+
+    class Features(gym.Env):
+        observation_space = gym.spaces.Box(-5, 5, (22,), np.float32)
+        action_space = gym.spaces.Box(-1, 1, (3,), np.float32)
+
+        def reset(self, *, seed=None, options=None):
+            super().reset(seed=seed)
+            return self.observation_space.sample(), {}
+
+        def step(self, action):
+            return self.observation_space.sample(), 0.0, False, False, {}
+
+    import stable_baselines3 as sb3
+
+    models = {}
+    for name, lib in (("sb3", sb3), ("sbx", sbx)):
+        m = lib.SAC("MlpPolicy", Features(), policy_kwargs={"net_arch": [256, 256]},
+                    learning_starts=0, buffer_size=5000, verbose=0, seed=0)
+        m.learn(600)
+        m.train(gradient_steps=1, batch_size=256)  # SBX compiles its update here
+        models[name] = m
+    rates: dict[str, list[float]] = {k: [] for k in models}
+    with torch_threads(1):
+        for _ in range(3):
+            for k, m in models.items():
+                t0 = time.perf_counter()
+                for _ in range(100):
+                    m.train(gradient_steps=1, batch_size=256)
+                rates[k].append(100 / (time.perf_counter() - t0))
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    benchmark.extra_info.update({f"{k}_updates_per_s": v for k, v in med.items()})
+    benchmark.extra_info["sbx_over_sb3"] = med["sbx"] / med["sb3"]
+    print(f"\n[SAC update 256x256] updates/s SB3 {med['sb3']:.0f}, SBX {med['sbx']:.0f}; "
+          f"SBX/SB3 = {med['sbx'] / med['sb3']:.2f}")
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+def test_encode_one_at_a_time_vs_batched(benchmark):
+    """The saving a vectorized evaluation could bring: a VAE encoding 5 evaluation
+    observations one call each (today) vs in one batched call, same run (issue 20 measured it
+    at ~1 ms per step, against ~1 s to build each extra PegInHole environment: not adopted)."""
+    task = ToyReachTask(horizon=50)
+    data = task.collect("random", n_episodes=2, steps_per_episode=20, seed=0, progress=False)
+    enc = _encoders(task)["vae"]
+    rows = [data.obs(slice(i, i + 1)) for i in range(5)]
+    batch = data.obs(slice(0, 5))
+    times: dict[str, list[float]] = {"one_at_a_time": [], "batched": []}
+    with torch_threads(1):
+        for _ in range(5):
+            t0 = time.perf_counter()
+            for _ in range(20):
+                for r in rows:
+                    enc.encode(r)
+            times["one_at_a_time"].append((time.perf_counter() - t0) / 100)
+            t0 = time.perf_counter()
+            for _ in range(20):
+                enc.encode(batch)
+            times["batched"].append((time.perf_counter() - t0) / 100)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    benchmark.extra_info.update({f"{k}_ms_per_obs": 1e3 * v for k, v in med.items()})
+    benchmark.extra_info["saving_ms_per_obs"] = 1e3 * (med["one_at_a_time"] - med["batched"])
+    print(f"\n[encode] ms per observation: one at a time {1e3 * med['one_at_a_time']:.2f}, "
+          f"batched by 5 {1e3 * med['batched']:.2f}")
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
