@@ -2,6 +2,7 @@
 
 * :func:`resolve_device` — ``"auto"`` → ``"cuda"`` when torch sees a GPU, else ``"cpu"``; any
   other value is checked to be a torch device and returned unchanged.
+* :func:`jax_single_thread` — JAX (the SBX agents) on one CPU thread, set before it is imported.
 * :func:`torch_threads` — inside the block torch (and, with ``blas=True``, the BLAS/OpenMP pools
   of numpy and scikit-learn) use ``n`` threads; the previous settings come back afterwards.
 """
@@ -69,3 +70,24 @@ def _load_thread_pools() -> None:
     for module in ("numpy", "scipy.linalg", "sklearn.utils._openmp_helpers"):
         with contextlib.suppress(ImportError):
             importlib.import_module(module)
+
+
+#: XLA flags that keep JAX's CPU computations on one thread (the SBX agents' ``torch_threads=1``).
+JAX_SINGLE_THREAD_FLAGS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+
+
+def jax_single_thread() -> bool:
+    """Make JAX (imported after this call) compute on one CPU thread, as the torch stages do.
+
+    XLA reads its flags once, when JAX starts: returns False (and changes nothing) when JAX is
+    already imported in this process, True when the flags are set for it.
+    """
+    import os
+    import sys
+
+    if "jax" in sys.modules:
+        return False
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_multi_thread_eigen" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} {JAX_SINGLE_THREAD_FLAGS}".strip()
+    return True

@@ -68,38 +68,80 @@ class EncodedPolicy:
 
 
 def save_policy(model: Any, path: str | os.PathLike[str]) -> Path:
-    """Save an SB3 SAC/DDPG model to ``path`` (a ``.zip``), atomically."""
+    """Save an SB3 or SBX SAC/DDPG model to ``path`` (a ``.zip``), atomically, with the
+    feature statistics an SBX model reads its observations through."""
     path = Path(path)
+    if isinstance(model, StandardizedModel):
+        model = model.model
     algo = type(model).__name__
     if algo not in _ALGORITHMS:
         raise ConfigError(f"save_policy: expected an SB3 SAC or DDPG model, got {algo}")
+    from repbench.rl.agents import is_jax_model
+
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.zip")
     model.save(tmp)
+    meta: dict[str, Any] = {"algorithm": algo,
+                            "backend": "sbx" if is_jax_model(model) else "sb3"}
+    stats = getattr(model, "repbench_feature_stats", None)
+    if stats is not None:  # the SBX backend standardizes outside the model
+        meta["feature_mean"] = [float(x) for x in stats[0]]
+        meta["feature_std"] = [float(x) for x in stats[1]]
     with zipfile.ZipFile(tmp, "a") as zf:
-        zf.writestr("repbench_policy.json", json.dumps({"algorithm": algo}))
+        zf.writestr("repbench_policy.json", json.dumps(meta))
     os.replace(tmp, path)
     return path
 
 
-def load_model(path: str | os.PathLike[str], device: str = "cpu") -> Any:
-    """Load an SB3 model written by :func:`save_policy`."""
-    import stable_baselines3 as sb3
+class StandardizedModel:
+    """A model trained on standardized observations (the SBX backend), predicting from raw
+    ones: ``predict(x)`` is ``model.predict(standardize(x))``; other attributes pass through."""
 
+    def __init__(self, model: Any, mean: Any, std: Any) -> None:
+        from repbench.rl.normalization import check_statistics
+
+        self.model = model
+        size = int(np.prod(model.observation_space.shape))
+        self.mean, self.std = check_statistics(mean, std, size)
+
+    def predict(self, observation: Any, **kwargs: Any) -> Any:
+        from repbench.rl.normalization import standardize
+
+        return self.model.predict(standardize(observation, self.mean, self.std), **kwargs)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.model, name)
+
+
+def load_model(path: str | os.PathLike[str], device: str = "cpu") -> Any:
+    """Load a model written by :func:`save_policy` (SB3 or SBX; an SBX model with its feature
+    statistics comes back as a :class:`StandardizedModel`)."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"policy file {path} does not exist; train the full-state agent again")
     try:
         with zipfile.ZipFile(path) as zf:
-            algo = json.loads(zf.read("repbench_policy.json"))["algorithm"]
+            meta = json.loads(zf.read("repbench_policy.json"))
+        algo = meta["algorithm"]
     except (zipfile.BadZipFile, KeyError, OSError, ValueError) as exc:
         raise DataError(f"policy file {path} is damaged or not a repbench policy ({exc}); "
                         "train it again") from None
     if algo not in _ALGORITHMS:
         raise DataError(f"policy file {path} holds unknown algorithm {algo!r}")
-    from repbench.rl.agents import resolve_device
+    from repbench.rl.agents import algorithm_module, resolve_device
 
-    return getattr(sb3, algo).load(path, device=resolve_device(device))
+    backend = meta.get("backend", "sb3")
+    if backend == "sbx":
+        from repbench.devices import jax_single_thread
+
+        jax_single_thread()
+        model = getattr(algorithm_module("sbx"), algo).load(path)
+    else:
+        model = getattr(algorithm_module("sb3"), algo).load(path,
+                                                            device=resolve_device(device))
+    if "feature_mean" in meta:
+        return StandardizedModel(model, meta["feature_mean"], meta["feature_std"])
+    return model
 
 
 def load_policy(path: str | os.PathLike[str], task: Task, encoder: Encoder,
@@ -159,6 +201,9 @@ def train_full_state_agent(task: Task, *, train_steps: int, seed: int,
                                       eval_episodes=eval_episodes, curve_points=curve_points,
                                       progress=progress)
     result.extras["role"] = "privileged"
+    stats = getattr(model, "repbench_feature_stats", None)
+    if stats is not None:  # SBX: the model reads standardized features
+        model = StandardizedModel(model, *stats)
     return EncodedPolicy(model, task, encoder), result
 
 

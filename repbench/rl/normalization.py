@@ -9,6 +9,11 @@ them. The statistics are fixed for the run and live in the policy's state dict, 
 model predicts from raw features with no extra file. Every encoder gets the same treatment, so
 the comparison between encoders stays fair; a latent's own scale no longer decides how fast
 the agent can learn from it.
+
+The SBX (JAX) backend has no torch features extractor: there the same transform,
+:func:`standardize`, runs on the observations instead (:class:`StandardizedObservation` for one
+environment, :class:`StandardizedVecEnv` for the training VecEnv), and the statistics are saved
+beside the model (:func:`repbench.rl.save_policy`).
 """
 
 from __future__ import annotations
@@ -48,6 +53,68 @@ def feature_statistics(env: gym.Env, steps: int, seed: int) -> tuple[np.ndarray,
     std = data.std(axis=0)
     std[std < MIN_STD] = 1.0
     return data.mean(axis=0).astype(np.float32), std.astype(np.float32)
+
+
+def standardize(x: Any, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """``clip((x − mean) / std, ±CLIP)`` as float32: what :class:`StandardizedFeatures` computes,
+    on numpy arrays."""
+    out = (np.asarray(x, np.float32) - mean) / std
+    return np.clip(out, -CLIP, CLIP).astype(np.float32)
+
+
+def check_statistics(mean: Any, std: Any, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean, std)`` as float32 ``[size]`` arrays; ValueError for a wrong size or std <= 0."""
+    mean_a = np.asarray(mean, np.float32).reshape(-1)
+    std_a = np.asarray(std, np.float32).reshape(-1)
+    if mean_a.size != size or std_a.size != size:
+        raise ValueError(f"feature statistics of size {mean_a.size}/{std_a.size} for "
+                         f"observations of size {size}")
+    if not bool((std_a > 0).all()):
+        raise ValueError("feature statistics: standard deviations must be > 0")
+    return mean_a, std_a
+
+
+class StandardizedObservation(gym.ObservationWrapper):
+    """A flat-Box environment whose observations are :func:`standardize`-d with fixed
+    statistics (the SBX backend's evaluation environment)."""
+
+    def __init__(self, env: gym.Env, mean: Any, std: Any) -> None:
+        super().__init__(env)
+        size = int(np.prod(env.observation_space.shape))
+        self.mean, self.std = check_statistics(mean, std, size)
+        self.observation_space = gym.spaces.Box(-CLIP, CLIP, (size,), np.float32)
+
+    def observation(self, observation: Any) -> np.ndarray:
+        return standardize(observation, self.mean, self.std)
+
+
+def standardized_vec_env(venv: Any, mean: Any, std: Any) -> Any:
+    """An SB3 VecEnv whose observations (terminal observations included) are
+    :func:`standardize`-d with fixed statistics (the SBX backend's training environment)."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    size = int(np.prod(venv.observation_space.shape))
+    mean_a, std_a = check_statistics(mean, std, size)
+
+    class StandardizedVecEnv(VecEnvWrapper):
+        """Fixed standardization of every observation of a VecEnv."""
+
+        def __init__(self) -> None:
+            super().__init__(venv, observation_space=gym.spaces.Box(-CLIP, CLIP, (size,),
+                                                                    np.float32))
+
+        def reset(self) -> np.ndarray:
+            return standardize(self.venv.reset(), mean_a, std_a)
+
+        def step_wait(self) -> Any:
+            obs, rewards, dones, infos = self.venv.step_wait()
+            for info in infos:
+                if "terminal_observation" in info:
+                    info["terminal_observation"] = standardize(info["terminal_observation"],
+                                                               mean_a, std_a)
+            return standardize(obs, mean_a, std_a), rewards, dones, infos
+
+    return StandardizedVecEnv()
 
 
 class StandardizedFeatures(BaseFeaturesExtractor):
