@@ -38,6 +38,24 @@ def check_render(size: int = 64) -> tuple[bool, str]:
     return True, f"{size}x{size} offscreen render ok (mean pixel {image.mean():.1f})"
 
 
+#: The Debian/Ubuntu packages headless rendering needs, and the browser the page test drives.
+RENDER_PACKAGES = ("libegl1", "libgl1", "libgl1-mesa-dri")
+BROWSER_PACKAGE = "chromium"
+
+
+def apt_install_line(packages: tuple[str, ...] | list[str], *, is_root: bool | None = None,
+                     sudo: str | None = None) -> str:
+    """The exact command that installs ``packages`` here: plain ``apt-get`` as root, through
+    sudo otherwise (``apt-get update`` first, which a fresh machine needs)."""
+    import shutil
+
+    root = (os.geteuid() == 0) if is_root is None and hasattr(os, "geteuid") else bool(is_root)
+    prefix = "" if root else ((sudo if sudo is not None else shutil.which("sudo") or "sudo")
+                              .rsplit("/", 1)[-1] + " ")
+    return (f"{prefix}apt-get update && {prefix}apt-get install -y "
+            f"{' '.join(packages)}")
+
+
 def run_doctor(echo: Callable[[str], None] = print) -> bool:
     """Print a report; return True when everything needed works."""
     from importlib.metadata import PackageNotFoundError, version
@@ -68,8 +86,14 @@ def run_doctor(echo: Callable[[str], None] = print) -> bool:
     echo(f"render      {msg}")
     if not render_ok:
         ok = False
-        fixes.append("headless rendering needs EGL: apt-get install libegl1 libgl1-mesa-dri "
-                     "(Debian/Ubuntu), and MUJOCO_GL=egl")
+        fixes.append("headless rendering needs EGL (Debian/Ubuntu): "
+                     f"{apt_install_line(RENDER_PACKAGES)}; and MUJOCO_GL=egl")
+    import shutil
+
+    browser = shutil.which(BROWSER_PACKAGE)
+    echo(f"browser     {browser or 'chromium not found (only the HTML page test needs it)'}")
+    if browser is None:  # optional: only the browser test of the page uses it
+        fixes.append(f"(optional, for the page test) {apt_install_line([BROWSER_PACKAGE])}")
     try:
         import torch
 

@@ -55,3 +55,12 @@ def test_task_preview_writes_a_contact_sheet(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "p.png").stat().st_size > 5_000
     assert "WARNING" not in out.stderr  # robosuite's harmless import warnings are filtered
+
+
+def test_doctor_install_line_fits_root_and_sudo() -> None:
+    from repbench.doctor import apt_install_line
+
+    assert apt_install_line(["libegl1"], is_root=True) == (
+        "apt-get update && apt-get install -y libegl1")
+    assert apt_install_line(["libegl1", "chromium"], is_root=False, sudo="/usr/bin/sudo") == (
+        "sudo apt-get update && sudo apt-get install -y libegl1 chromium")
