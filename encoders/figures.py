@@ -26,7 +26,7 @@ def save_reconstruction_figure(encoder: MultimodalVAE, dataset: Dataset,
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from repbench.figures import save_figure
+    from repbench.report.figures import save_figure
 
     if not isinstance(encoder, MultimodalVAE):
         raise DataError(f"save_reconstruction_figure needs a VAE-family encoder with a decoder, "

@@ -20,12 +20,16 @@ from repbench.encoder import Encoder  # noqa: E402
 from repbench.errors import RepbenchError  # noqa: E402
 from repbench.gym_envs import register_gym_envs  # noqa: E402
 from repbench.metric import Metric, MetricResult, metric  # noqa: E402
+from repbench.pipeline.store import Store  # noqa: E402
+from repbench.pipeline.suite import Suite, load_suite  # noqa: E402
 from repbench.registry import agents, encoders, tasks  # noqa: E402
-from repbench.store import Store  # noqa: E402
-from repbench.suite import Suite, load_suite  # noqa: E402
 from repbench.task import Task  # noqa: E402
 
 register_gym_envs()  # gymnasium.make("repbench/PegInHole-v0") after `import repbench`
+
+from repbench import _moved  # noqa: E402
+
+_moved.install()  # repbench.store etc. moved into pipeline/, analysis/, report/
 
 __version__ = "0.1.0"
 

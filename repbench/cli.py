@@ -86,7 +86,7 @@ def run(
 ) -> None:
     """Run a suite: datasets → encoders → latents → metrics → RL → correlations →
     leaderboards. Finished stages are reused from the store, so an interrupted run resumes."""
-    from repbench.runner import run_suite
+    from repbench.pipeline.runner import run_suite
 
     result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
                        ray_address=ray_address)
@@ -106,7 +106,7 @@ def leaderboard(
         "leaderboards/smoke/records) instead of the store.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
-    from repbench.runner import rebuild_leaderboards
+    from repbench.pipeline.runner import rebuild_leaderboards
 
     if records is not None and not records.is_dir():
         raise RepbenchError(f"records folder {records} does not exist")
@@ -134,7 +134,7 @@ def evaluate(
 ) -> None:
     """Evaluate one encoder against a suite's reference records: compute only its stages,
     merge, and write a leaderboard with it highlighted."""
-    from repbench.evaluate import evaluate_encoder
+    from repbench.pipeline.evaluate import evaluate_encoder
 
     result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store, out=out,
                               reference=reference, workers=workers)
@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> None:
         typer.echo(f"repbench: error: {exc}", err=True)
         sys.exit(2)
     except OSError as exc:  # a full disk outside the store (leaderboards, figures): one line too
-        from repbench.diskfull import is_disk_full
+        from repbench.pipeline.diskfull import is_disk_full
 
         if not is_disk_full(exc):
             raise

@@ -35,7 +35,7 @@ def torch_threads(n: int | None, *, blas: bool = False) -> Iterator[None]:
     """Use ``n`` torch intra-op threads inside the block (``None``: leave settings alone).
 
     ``blas=True`` also limits the BLAS/OpenMP thread pools (threadpoolctl), as every executor
-    does around a stage (:data:`repbench.stages.STAGE_THREADS`): workers then do not
+    does around a stage (:data:`repbench.pipeline.stages.STAGE_THREADS`): workers then do not
     oversubscribe the cores, and every executor sums in the same order, so deterministic stages
     give bit-identical results everywhere. threadpoolctl only reaches libraries already loaded,
     so the ones repbench's stages use (numpy's and scipy's BLAS, scikit-learn's and torch's

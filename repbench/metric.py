@@ -59,7 +59,7 @@ def metric(name: str, *, higher_is_better: bool, description: str = "", min_samp
     a suite file fails before any stage; call it from the metric too.
 
     ``version``: bump it when a change alters the metric's values; stored results of the older
-    version then show as stale instead of being reused (:mod:`repbench.records`).
+    version then show as stale instead of being reused (:mod:`repbench.pipeline.records`).
     """
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:

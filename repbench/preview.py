@@ -12,7 +12,7 @@ import numpy as np
 
 from repbench.dataset import FT, IMAGE
 from repbench.errors import ConfigError
-from repbench.preflight import check_out_file
+from repbench.pipeline.preflight import check_out_file
 from repbench.task import Task
 
 
@@ -32,7 +32,7 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from repbench.figures import save_figure
+    from repbench.report.figures import save_figure
 
     _check_preview_args(out, n_frames, seed, steps)
     steps = steps or max(n_frames * 4, 40)

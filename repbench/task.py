@@ -26,7 +26,8 @@ class Task(abc.ABC):
 
     #: Declared version of what this plugin computes. Part of every stage key and result record
     #: in place of the source code: bump it when a change alters results; editing docstrings or
-    #: refactoring needs no bump. Older records then show as stale (:mod:`repbench.records`).
+    #: refactoring needs no bump. Older records then show as stale
+    #: (:mod:`repbench.pipeline.records`).
     version: ClassVar[int] = 0
 
     #: Versioned id, as in gymnasium (``PegInHole-v0``).

@@ -159,7 +159,7 @@ class PegInHoleTask(Task):
         :func:`repbench_tasks.collection.collect`. The contact share is in the metadata."""
         import time
 
-        from repbench.store import library_versions
+        from repbench.pipeline.store import library_versions
         from repbench_tasks.collection import check_collect_args, collect
 
         check_collect_args(kind, n_episodes, steps_per_episode, policy)  # before the env build

@@ -95,7 +95,8 @@ def episode_bootstrap_replicates(statistic: Callable[[np.ndarray], float], episo
     """:func:`episode_bootstrap` plus the bootstrap replicates themselves (a list of floats).
 
     Metrics store the replicates in ``extras["bootstrap_replicates"]`` so that the correlation
-    analysis can carry each encoder's metric estimation noise (:mod:`repbench.correlation`).
+    analysis can carry each encoder's metric estimation noise
+    (:mod:`repbench.analysis.correlation`).
     """
     if n_bootstrap <= 0:
         return None, None, []

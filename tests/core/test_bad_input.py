@@ -19,9 +19,9 @@ import pytest
 import repbench
 from repbench.cli import main
 from repbench.errors import ConfigError, DataError, StoreError
-from repbench.preflight import check_ray_address
-from repbench.store import Store
-from repbench.suite import load_suite
+from repbench.pipeline.preflight import check_ray_address
+from repbench.pipeline.store import Store
+from repbench.pipeline.suite import load_suite
 
 from ..runner.tiny_toy_suite import tiny_toy_suite
 
@@ -46,8 +46,8 @@ def no_stage_runs(monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("a stage ran before the bad input was noticed")
 
-    monkeypatch.setattr("repbench.runner.run_stages", refuse)
-    monkeypatch.setattr("repbench.evaluate.run_stages", refuse)
+    monkeypatch.setattr("repbench.pipeline.runner.run_stages", refuse)
+    monkeypatch.setattr("repbench.pipeline.evaluate.run_stages", refuse)
 
 
 @pytest.fixture
@@ -399,9 +399,9 @@ class Broken(repbench.Encoder):
 def broken_plan(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict]]:
     """A store with the toy random dataset, and the encoder/latents stages of ``Broken`` in
     every mode."""
-    from repbench.plan import build_plan
+    from repbench.pipeline.plan import build_plan
+    from repbench.pipeline.stages import execute
     from repbench.registry import encoders
-    from repbench.stages import execute
 
     encoders.register("broken_test_encoder", Broken, replace=True)
     folder = tmp_path_factory.mktemp("broken")
@@ -437,7 +437,7 @@ def test_broken_encoder_stops_at_the_encoder_stage(broken_plan: tuple[str, dict]
     """Before: a wrong-width latent reached the metrics (only RL failed); short rows, 1-D
     arrays and strings failed in numpy; fit returning None gave "'NoneType' object has no
     attribute 'save'"."""
-    from repbench.stages import ENCODER, execute
+    from repbench.pipeline.stages import ENCODER, execute
 
     root, stages = broken_plan
     encoder_stage, _ = stages[mode]
@@ -453,7 +453,7 @@ def test_broken_encoder_stops_at_the_latents_stage(broken_plan: tuple[str, dict]
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """An encoder that passed its own stage but encodes the metric data wrongly: no latents
     are stored, so no metric of them can be published."""
-    from repbench.stages import LATENTS, execute
+    from repbench.pipeline.stages import LATENTS, execute
 
     root, stages = broken_plan
     encoder_stage, latents_stage = stages["ok"]
@@ -467,7 +467,7 @@ def test_broken_encoder_stops_at_the_latents_stage(broken_plan: tuple[str, dict]
 
 
 def test_good_encoder_passes_both_stages(broken_plan: tuple[str, dict]) -> None:
-    from repbench.stages import LATENTS, execute
+    from repbench.pipeline.stages import LATENTS, execute
 
     root, stages = broken_plan
     for stage in stages["ok"]:
@@ -487,7 +487,7 @@ def test_full_disk_stops_the_run_with_one_message(capsys: pytest.CaptureFixture[
     leaderboard. Now the first full-disk error stops it: one message, exit code 2."""
     import errno
 
-    from repbench.store import ArtifactWriter
+    from repbench.pipeline.store import ArtifactWriter
 
     attempts: list[str] = []
 
@@ -519,8 +519,8 @@ def test_full_disk_in_a_worker_stops_run_stages(tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """Pool and Ray workers hand the error back as data (marked fatal); run_stages stops."""
     from repbench.errors import DiskFullError
-    from repbench.executors import _execute_catching, run_stages
-    from repbench.stages import DATASET, StageSpec
+    from repbench.pipeline.executors import _execute_catching, run_stages
+    from repbench.pipeline.stages import DATASET, StageSpec
 
     class Failing:
         capacity = 2
@@ -551,7 +551,7 @@ def test_full_disk_in_a_worker_stops_run_stages(tmp_path: Path,
     def full(*args: object) -> dict[str, object]:
         raise DiskFullError("no space left on the disk of store x")
 
-    monkeypatch.setattr("repbench.executors.execute", full)
+    monkeypatch.setattr("repbench.pipeline.executors.execute", full)
     assert _execute_catching(specs[0], str(tmp_path)) == {
         "error": "no space left on the disk of store x", "fatal": True}
 
@@ -559,8 +559,8 @@ def test_full_disk_in_a_worker_stops_run_stages(tmp_path: Path,
 def test_only_a_full_disk_is_fatal() -> None:
     import errno
 
-    from repbench.diskfull import is_disk_full, stop_when_full
     from repbench.errors import DiskFullError
+    from repbench.pipeline.diskfull import is_disk_full, stop_when_full
 
     # other write errors stay what they are
     with pytest.raises(PermissionError), stop_when_full("stage x", "store y"):

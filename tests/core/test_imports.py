@@ -14,8 +14,9 @@ PACKAGE = Path(__file__).resolve().parents[2] / "repbench"
 
 #: The core layer, bottom to top.
 CORE = ["errors", "references", "dataset", "devices", "encoder", "task", "agent", "metric_types",
-        "registry", "metric", "gym_envs", "store", "suite", "stages", "plan", "executors",
-        "correlation", "leaderboard", "runner", "cli"]
+        "registry", "metric", "gym_envs", "pipeline.store", "pipeline.suite", "pipeline.stages",
+        "pipeline.plan", "pipeline.executors", "analysis.correlation", "report.leaderboard",
+        "pipeline.runner", "cli"]
 
 
 def _modules() -> dict[str, Path]:

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from repbench.errors import ConfigError
-from repbench.plan import build_plan
-from repbench.suite import load_suite
+from repbench.pipeline.plan import build_plan
+from repbench.pipeline.suite import load_suite
 
 ROOT = Path(__file__).resolve().parents[2]
 

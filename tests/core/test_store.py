@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from repbench.errors import StoreError
-from repbench.store import Store, stage_key
+from repbench.pipeline.store import Store, stage_key
 
 
 def _put(store: Store, key: str, payload: bytes = b"x" * 1000) -> None:
@@ -87,7 +87,7 @@ def test_root_from_environment(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
 
 _SLOW_WRITER = textwrap.dedent("""
     import sys, time
-    from repbench.store import Store
+    from repbench.pipeline.store import Store
     store = Store(sys.argv[1])
     with store.write("stage", "big", config={}) as w:
         with open(w.file("data.bin"), "wb") as f:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from repbench.errors import ConfigError
-from repbench.suite import BUILTIN_SUITES, load_suite
+from repbench.pipeline.suite import BUILTIN_SUITES, load_suite
 
 _VALID = """
 name = "mine"

@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_shipped_smoke_records_are_readable() -> None:
-    from repbench.results import build_results, load_records
+    from repbench.analysis.results import build_results, load_records
 
     records = load_records(ROOT / "leaderboards" / "smoke" / "records")
     kinds = {r["kind"] for r in records}
@@ -66,3 +66,4 @@ def test_third_party_encoder_evaluated_metrics_only(smoke_run: SuiteRun, tmp_pat
     assert pd.notna(enc.loc["mean_pixel", "sac_predicted_return"])
     html = (out_dir / "index.html").read_text()
     assert '<tr class="highlight"' in html and "Predicted sac return of mean_pixel" in html
+

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from repbench.dataset import Dataset
-from repbench.store import Store
+from repbench.pipeline.store import Store
 
 from .conftest import repbench_cmd, run_repbench
 

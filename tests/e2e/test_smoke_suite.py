@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from repbench.store import Store
-from repbench.suite import load_suite
+from repbench.pipeline.store import Store
+from repbench.pipeline.suite import load_suite
 
 from .conftest import SuiteRun, run_repbench
 

@@ -36,7 +36,7 @@ def test_registered_encoder_conforms(name: str, request: pytest.FixtureRequest) 
 def test_registered_encoder_conforms_with_early_stopping(name: str,
                                                           tiny_dataset: repbench.Dataset) -> None:
     """The suites' training settings (held-out episodes, patience) work for every encoder."""
-    from repbench.plan import accepted_kwargs
+    from repbench.pipeline.plan import accepted_kwargs
 
     cls = repbench.encoders.get(name)
     params = accepted_kwargs(cls, {"epochs": 2, "patience": 1, "validation_fraction": 0.34})

@@ -12,8 +12,8 @@ import pytest
 import repbench
 from repbench.dataset import Dataset
 from repbench.errors import ConfigError
-from repbench.stages import _save_fit_history
-from repbench.suite import load_suite
+from repbench.pipeline.stages import _save_fit_history
+from repbench.pipeline.suite import load_suite
 
 
 class _Writer:
@@ -76,7 +76,7 @@ epochs = 5
 
 
 def test_quick_trains_every_encoder_with_early_stopping() -> None:
-    from repbench.plan import build_plan
+    from repbench.pipeline.plan import build_plan
 
     suite = load_suite("quick")
     assert len(suite.encoders) >= 20

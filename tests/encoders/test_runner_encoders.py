@@ -6,10 +6,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from repbench.plan import build_plan
-from repbench.runner import run_suite
-from repbench.store import Store
-from repbench.suite import load_suite
+from repbench.pipeline.plan import build_plan
+from repbench.pipeline.runner import run_suite
+from repbench.pipeline.store import Store
+from repbench.pipeline.suite import load_suite
 
 SUITE = """
 name = "toy_encoders"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from repbench.runner import run_suite
+from repbench.pipeline.runner import run_suite
 
 from ..runner.tiny_toy_suite import tiny_toy_suite
 from .conftest import Cli

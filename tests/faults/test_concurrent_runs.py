@@ -10,7 +10,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from repbench.store import Store
+from repbench.pipeline.store import Store
 
 from .conftest import Cli, fault_suite
 
@@ -46,7 +46,7 @@ def test_two_runs_on_one_store_compute_each_stage_once(cli: Cli) -> None:
 
 _HOLDER = """
 import sys, time
-from repbench.store import Store
+from repbench.pipeline.store import Store
 with Store(sys.argv[1]).lock("metric", "k") as held:
     print("held" if held else "busy", flush=True)
     time.sleep(600)

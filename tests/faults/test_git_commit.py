@@ -9,13 +9,13 @@ import sys
 from pathlib import Path
 
 import repbench
-from repbench.store import source_commit
+from repbench.pipeline.store import source_commit
 
 PACKAGE = Path(repbench.__file__).resolve().parent
 _WRITE = """
 import json, sys
-from repbench.records import make_record
-from repbench.store import Store, git_commit
+from repbench.pipeline.records import make_record
+from repbench.pipeline.store import Store, git_commit
 store = Store(sys.argv[1])
 with store.write("stage", "k", config={}) as w:
     w.write_json({"ok": True})

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from repbench.store import Store
+from repbench.pipeline.store import Store
 
 from .conftest import Cli, fault_suite
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repbench.store import Store, git_commit
+from repbench.pipeline.store import Store, git_commit
 
 from .conftest import Cli, fault_suite
 

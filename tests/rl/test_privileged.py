@@ -9,9 +9,9 @@ import pytest
 
 import repbench
 from repbench.errors import ConfigError
-from repbench.plan import build_plan
+from repbench.pipeline.plan import build_plan
+from repbench.pipeline.suite import load_suite
 from repbench.rl import SACAgent
-from repbench.suite import load_suite
 from repbench.task import Task
 from repbench.testing.toy_task import ToyReachTask
 

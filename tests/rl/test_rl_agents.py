@@ -9,8 +9,8 @@ import pytest
 
 import repbench
 from repbench.errors import ConfigError, PluginError
+from repbench.pipeline.suite import load_suite
 from repbench.rl import DDPGAgent, SACAgent
-from repbench.suite import load_suite
 from repbench.testing import check_agent
 
 TINY = {"learning_starts": 30, "batch_size": 32, "progress": False}

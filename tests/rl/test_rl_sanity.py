@@ -87,7 +87,7 @@ def test_upper_bound_beats_baselines_at_seed_level_on_quick_budget(task_name):
 
 def _train_privileged(task_name: str) -> dict:
     """The privileged agent exactly as the quick suite trains it (a worker process)."""
-    from repbench.plan import build_plan
+    from repbench.pipeline.plan import build_plan
 
     suite = repbench.load_suite("quick")
     plan = build_plan(suite)

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from repbench.claims import KL_PAIRS, check_claims, verdict
-from repbench.correlation import metric_leaderboard
+from repbench.analysis.claims import KL_PAIRS, check_claims, verdict
+from repbench.analysis.correlation import metric_leaderboard
 
 
 @pytest.mark.parametrize(("value", "lo", "hi", "sign", "p", "expected"), [

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from repbench.correlation import correlate, mean_ci
+from repbench.analysis.correlation import correlate, mean_ci
 
 ENCS = [f"e{i}" for i in range(8)]
 
@@ -68,7 +68,7 @@ def test_mean_ci() -> None:
 
 
 def test_vectorized_bootstrap_coefficients_match_scipy() -> None:
-    from repbench.correlation import batch_coefficients
+    from repbench.analysis.correlation import batch_coefficients
 
     rng = np.random.default_rng(11)
     x = rng.integers(0, 4, (40, 9)).astype(float)  # many ties

@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 
 import repbench
-from repbench.calibration import MIN_REFERENCE, predict_return
-from repbench.evaluate import evaluate_encoder
+from repbench.analysis.calibration import MIN_REFERENCE, predict_return
+from repbench.pipeline.evaluate import evaluate_encoder
+from repbench.pipeline.runner import run_suite
 from repbench.registry import encoders
-from repbench.runner import run_suite
 
 from .tiny_toy_suite import tiny_toy_suite
 

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from repbench.plan import build_plan
-from repbench.runner import run_suite
-from repbench.stages import metric_rows
-from repbench.store import Store
-from repbench.suite import load_suite
+from repbench.pipeline.plan import build_plan
+from repbench.pipeline.runner import run_suite
+from repbench.pipeline.stages import metric_rows
+from repbench.pipeline.store import Store
+from repbench.pipeline.suite import load_suite
 
 from .test_runner_toy import SUITE
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from repbench.correlation import (
+from repbench.analysis.correlation import (
     adjust_pvalues,
     correlate,
     leave_one_out,

@@ -12,8 +12,8 @@ import pandas as pd
 import pytest
 
 from repbench.errors import ConfigError
-from repbench.records import CHECKSUM, SCHEMA_VERSION, inspect_record, record_checksum
-from repbench.runner import rebuild_leaderboards, run_suite
+from repbench.pipeline.records import CHECKSUM, SCHEMA_VERSION, inspect_record, record_checksum
+from repbench.pipeline.runner import rebuild_leaderboards, run_suite
 
 from .tiny_toy_suite import tiny_toy_suite
 

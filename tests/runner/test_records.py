@@ -12,9 +12,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from repbench.records import SCHEMA, SCHEMA_VERSION, identity_key
+from repbench.pipeline.records import SCHEMA, SCHEMA_VERSION, identity_key
+from repbench.pipeline.runner import rebuild_leaderboards, run_suite
 from repbench.registry import encoders
-from repbench.runner import rebuild_leaderboards, run_suite
 
 from .tiny_toy_suite import tiny_toy_suite
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from repbench.leaderboard import Results, encoder_table, metric_table, write_leaderboards
-from repbench.suite import load_suite
+from repbench.pipeline.suite import load_suite
+from repbench.report.leaderboard import Results, encoder_table, metric_table, write_leaderboards
 
 EVIL = "<script>alert('x')</script>"
 

@@ -10,8 +10,8 @@ import pytest
 
 from repbench.errors import ConfigError
 from repbench.metric import MetricResult, metric
+from repbench.pipeline.runner import rebuild_leaderboards, run_suite
 from repbench.registry import metrics
-from repbench.runner import rebuild_leaderboards, run_suite
 
 SUITE = """
 name = "toy"

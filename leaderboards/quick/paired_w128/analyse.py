@@ -18,7 +18,7 @@ import numpy as np
 from scipy import stats
 from statsmodels.stats.multitest import multipletests
 
-from repbench.results import load_records
+from repbench.analysis.results import load_records
 
 ENCODERS = ["supervised_task", "vae_lowkl", "vae", "oracle_task", "success", "pca", "random",
             "proprio_only"]

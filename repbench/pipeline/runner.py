@@ -10,15 +10,21 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from repbench.analysis.results import (
+    Results,
+    build_results,
+    installed_versions,
+    load_records,
+    select,
+)
 from repbench.errors import ConfigError, RepbenchError
-from repbench.executors import RunReport, make_executor, run_stages
-from repbench.leaderboard import write_leaderboards
-from repbench.plan import Plan, build_plan
-from repbench.preflight import check_out_dir
-from repbench.records import identity_key
-from repbench.results import Results, build_results, installed_versions, load_records, select
-from repbench.store import Store
-from repbench.suite import BUILTIN_SUITES, Suite, load_suite
+from repbench.pipeline.executors import RunReport, make_executor, run_stages
+from repbench.pipeline.plan import Plan, build_plan
+from repbench.pipeline.preflight import check_out_dir
+from repbench.pipeline.records import identity_key
+from repbench.pipeline.store import Store
+from repbench.pipeline.suite import BUILTIN_SUITES, Suite, load_suite
+from repbench.report.leaderboard import write_leaderboards
 
 log = logging.getLogger(__name__)
 

@@ -21,10 +21,10 @@ import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
-from repbench.diskfull import stop_when_full
-from repbench.records import RECORD_FILE, make_record, write_record
+from repbench.pipeline.diskfull import stop_when_full
+from repbench.pipeline.records import RECORD_FILE, make_record, write_record
+from repbench.pipeline.store import Store, stage_key
 from repbench.registry import agents, encoders, metrics, tasks
-from repbench.store import Store, stage_key
 
 DATASET, FULL_STATE, ENCODER, LATENTS, METRIC, RL, DIAGNOSTICS = (
     "dataset", "full_state_agent", "encoder", "latents", "metric", "rl", "diagnostics",
@@ -39,8 +39,8 @@ class StageSpec:
     config: Mapping[str, Any]
     inputs: Mapping[str, tuple[str, str]] = field(default_factory=dict)  # name → (kind, key)
     label: str = ""
-    #: What the stage computes, for its result record (:mod:`repbench.records`): task, data,
-    #: plugins with versions and parameters, seed. Not part of the key (the config is).
+    #: What the stage computes, for its result record (:mod:`repbench.pipeline.records`): task,
+    #: data, plugins with versions and parameters, seed. Not part of the key (the config is).
     record: Mapping[str, Any] | None = field(default=None, compare=False)
 
     @property
@@ -155,7 +155,7 @@ def _save_fit_history(enc: Any, name: str, w: Any) -> dict[str, Any]:
     best = int(getattr(enc, "best_epoch_", len(history)) or len(history))
     heldout = history[best - 1].get("heldout", {}) if 0 < best <= len(history) else {}
     try:
-        from repbench.figures import loss_curves
+        from repbench.report.figures import loss_curves
 
         loss_curves(history, w.file("loss_curves.png"), title=f"{name}: loss per epoch",
                     best_epoch=best)
@@ -300,7 +300,7 @@ def interrupts_recorded() -> Iterator[list[int]]:
     a half-trained model). The previous handler comes back afterwards.
 
     Nothing is installed outside the main thread (Python allows handlers only there) or where
-    SIGINT is ignored (pool workers: their parent stops them, :mod:`repbench.executors`).
+    SIGINT is ignored (pool workers: their parent stops them, :mod:`repbench.pipeline.executors`).
     """
     seen: list[int] = []
     if threading.current_thread() is not threading.main_thread():
@@ -356,7 +356,8 @@ def _compute(spec: StageSpec, store: Store) -> dict[str, Any]:
 
 
 def _write_record(spec: StageSpec, store: Store, w: Any, wall_s: float, cpu_s: float) -> None:
-    """The stage's self-describing result record (:mod:`repbench.records`), in its artifact."""
+    """The stage's self-describing result record (:mod:`repbench.pipeline.records`), in its
+    artifact."""
     assert spec.record is not None
     result = w.file("result.json")
     values = json.loads(result.read_text()) if result.is_file() else {}

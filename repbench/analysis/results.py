@@ -1,7 +1,7 @@
 """Results are the source of truth: read result records and turn them into leaderboard rows.
 
-Records (:mod:`repbench.records`) come from a stage store or from a folder of JSON files (the
-reference records shipped in ``leaderboards/<suite>/records/``). This module knows nothing of
+Records (:mod:`repbench.pipeline.records`) come from a stage store or from a folder of JSON files
+(the reference records shipped in ``leaderboards/<suite>/records/``). This module knows nothing of
 suites' plans: :func:`select` keeps the records whose identities a caller asks for, and
 :func:`build_results` is a pure function of the records it is given (plus the installed plugin
 versions, to mark older records *stale*). The leaderboard tables and pages are computed from the
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from repbench.errors import RepbenchError
-from repbench.records import (
+from repbench.pipeline.records import (
     CHECKSUM,
     PLUGIN_PARTS,
     RECORD_FILE,
@@ -27,8 +27,8 @@ from repbench.records import (
     plugin_version,
     versions_of,
 )
+from repbench.pipeline.store import META, Store, file_sha256
 from repbench.registry import REGISTRIES
-from repbench.store import META, Store, file_sha256
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +62,7 @@ class Results:
     #: notes shown above the tables (e.g. data that differ from the reference data)
     warnings: list[str] = field(default_factory=list)
     #: (task, agent, metric) → encoder → leave-one-encoder-out predicted return (metric
-    #: leaderboard, :func:`repbench.leaderboard.metric_ranking`)
+    #: leaderboard, :func:`repbench.report.leaderboard.metric_ranking`)
     loo_predictions: dict[tuple[str, str, str], dict[str, float]] = field(default_factory=dict)
 
 
@@ -70,10 +70,10 @@ class Results:
 
 def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS,
                  problems: list[str] | None = None) -> list[dict[str, Any]]:
-    """Every sound record in ``sources``: a :class:`repbench.store.Store`, a store root, or a
-    folder of record JSON files (searched recursively).
+    """Every sound record in ``sources``: a :class:`repbench.pipeline.store.Store`, a store root,
+    or a folder of record JSON files (searched recursively).
 
-    Each record is checked (:func:`repbench.records.inspect_record`: valid JSON, its own
+    Each record is checked (:func:`repbench.pipeline.records.inspect_record`: valid JSON, its own
     checksum; in a store also the checksum the artifact's ``meta.json`` holds for it). A record
     that fails is left out with a one-line warning naming the file and why (logged, and
     appended to ``problems`` when given), never published.
@@ -275,7 +275,7 @@ def _provenance(suite: Any, records: list[Mapping[str, Any]]) -> dict[str, Any]:
 def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Path]:
     """Write ``records`` as ``folder/<kind>/<task>.<encoder>.<metric|agent>.s<seed>-<id>.json``
     (replacing the folder's earlier records): the shippable form of a leaderboard's results."""
-    from repbench.records import write_record
+    from repbench.pipeline.records import write_record
 
     folder = Path(folder)
     if folder.is_dir():

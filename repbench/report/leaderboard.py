@@ -1,6 +1,6 @@
 """Leaderboards are pure functions of result records: records → :class:`Results` → tables →
 CSV/HTML. Which records a suite's leaderboard shows is decided by the caller (the runner selects
-them by identity, :mod:`repbench.results`); nothing here reads a plan or the store.
+them by identity, :mod:`repbench.analysis.results`); nothing here reads a plan or the store.
 
 * ``encoders.csv`` — one row per task × encoder: how it was trained (fit time, epochs run, the
   epoch kept by early stopping and its held-out loss), every metric with its CI, and per agent
@@ -12,8 +12,8 @@ them by identity, :mod:`repbench.results`); nothing here reads a plan or the sto
   Pearson, Spearman and Kendall over all encoders with bootstrap CIs and p-values — "which
   metric predicts RL performance".
 * ``claims.csv`` — the paper's claims checked against these records, each with its statistic,
-  interval and verdict (:mod:`repbench.claims`).
-* ``index.html`` — one self-contained page (see :mod:`repbench.report_html`).
+  interval and verdict (:mod:`repbench.analysis.claims`).
+* ``index.html`` — one self-contained page (see :mod:`repbench.report.report_html`).
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repbench.correlation import METHODS, correlate
-from repbench.results import Results, build_results, write_records
+from repbench.analysis.correlation import METHODS, correlate
+from repbench.analysis.results import Results, build_results, write_records
 from repbench.rl.aggregate import aggregate_seeds
 
 __all__ = ["Results", "build_results", "encoder_table", "metric_table", "write_leaderboards"]
@@ -103,10 +103,10 @@ def _families(res: Results) -> dict[str, str]:
 
 def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
                    ) -> tuple[pd.DataFrame, dict[tuple[str, str, str], dict[str, float]]]:
-    """The metric leaderboard (:func:`repbench.correlation.metric_leaderboard`) as a table,
+    """The metric leaderboard (:func:`repbench.analysis.correlation.metric_leaderboard`) as a table,
     ranked per task × agent by the within-learned-encoders Spearman ρ, then the all-encoder ρ;
     and the leave-one-encoder-out predicted returns per (task, agent, metric)."""
-    from repbench.correlation import metric_leaderboard
+    from repbench.analysis.correlation import metric_leaderboard
 
     families = _families(res)
     rows, preds = metric_leaderboard(res.metric_rows, res.rl_rows, families,
@@ -170,9 +170,9 @@ def metric_table(res: Results, n_bootstrap: int = 1000, seed: int = 0) -> pd.Dat
 
 
 def paper_claims(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
-    """The paper's claims (:func:`repbench.claims.check_claims`) for every task × agent with
-    RL results, as one table."""
-    from repbench.claims import check_claims, claims_table
+    """The paper's claims (:func:`repbench.analysis.claims.check_claims`) for every task × agent
+    with RL results, as one table."""
+    from repbench.analysis.claims import check_claims, claims_table
 
     if ranking.empty:
         return pd.DataFrame()
@@ -187,8 +187,8 @@ def paper_claims(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
 def write_leaderboards(res: Results, out_dir: Path) -> Path:
     """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``provenance.json``, figures,
     ``index.html`` and the records they were computed from (``records/``)."""
-    from repbench.figures import make_figures
-    from repbench.report_html import render_html
+    from repbench.report.figures import make_figures
+    from repbench.report.report_html import render_html
 
     out_dir.mkdir(parents=True, exist_ok=True)
     enc = encoder_table(res)

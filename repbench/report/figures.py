@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from repbench.correlation import mean_ci
+from repbench.analysis.correlation import mean_ci
 
 
 def _colors(names: list[str]) -> dict[str, Any]:

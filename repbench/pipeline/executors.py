@@ -1,14 +1,14 @@
 """Executors: run a DAG of stages in-process, on a local process pool, or on Ray.
 
-All three call the same :func:`repbench.stages.execute`, so a deterministic stage gives the same
-artifact wherever it runs. The scheduler submits a stage as soon as its inputs exist; a failed
+All three call the same :func:`repbench.pipeline.stages.execute`, so a deterministic stage gives the
+same artifact wherever it runs. The scheduler submits a stage as soon as its inputs exist; a failed
 stage is reported and its dependants are skipped, the rest of the suite still runs.
 
 Ctrl-C: pool workers ignore SIGINT (they start with it blocked, so not even a Ctrl-C during
 their start-up reaches them); the parent gets the KeyboardInterrupt, kills its workers (their
 running stages are never committed) and re-raises it, so the command line prints its
-one-line "interrupted" message. In-process, :func:`repbench.stages.execute` itself makes sure an
-interrupted stage is not committed.
+one-line "interrupted" message. In-process, :func:`repbench.pipeline.stages.execute` itself makes
+sure an interrupted stage is not committed.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from typing import Any, Protocol
 from tqdm.auto import tqdm
 
 from repbench.errors import ConfigError, DiskFullError
-from repbench.stages import StageSpec, execute
-from repbench.store import Store
+from repbench.pipeline.stages import StageSpec, execute
+from repbench.pipeline.store import Store
 
 
 @dataclass
@@ -152,7 +152,7 @@ def _sigint_blocked() -> Iterator[None]:
 
 class LocalPoolExecutor:
     """A process pool sized to the machine (spawned workers; every stage, here as everywhere,
-    runs with :data:`repbench.stages.STAGE_THREADS` threads)."""
+    runs with :data:`repbench.pipeline.stages.STAGE_THREADS` threads)."""
 
     def __init__(self, store_root: str, workers: int) -> None:
         self.root = store_root
@@ -245,7 +245,7 @@ def make_executor(kind: str, store_root: str, workers: int | None = None,
         return InProcessExecutor(store_root) if n <= 1 else LocalPoolExecutor(store_root, n)
     if kind == "ray":
         if ray_address:
-            from repbench.preflight import check_ray_address
+            from repbench.pipeline.preflight import check_ray_address
 
             check_ray_address(ray_address)  # before ray.init, which may wait minutes
         return RayExecutor(store_root, ray_address, workers)

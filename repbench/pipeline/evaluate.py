@@ -4,7 +4,7 @@ Computes only that encoder's stages (the suite's datasets and privileged full-st
 reused from the store or regenerated deterministically from their seeds), merges its records
 with the reference records shipped in ``leaderboards/<suite>/records/``, and writes a leaderboard
 with the new encoder highlighted. ``metrics_only`` skips its RL runs and predicts its return
-from the reference calibration (:mod:`repbench.calibration`) instead: minutes, not hours.
+from the reference calibration (:mod:`repbench.analysis.calibration`) instead: minutes, not hours.
 
 The new records are comparable with the reference only if they were computed on the same data:
 the records' data identities and the dataset checksums are compared, and any difference is
@@ -18,19 +18,25 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from repbench.calibration import predict_from_rows
+from repbench.analysis.calibration import predict_from_rows
+from repbench.analysis.results import (
+    Results,
+    build_results,
+    installed_versions,
+    load_records,
+    select,
+)
 from repbench.errors import ConfigError
-from repbench.executors import RunReport, make_executor, run_stages
-from repbench.leaderboard import write_leaderboards
-from repbench.plan import build_plan
-from repbench.preflight import check_out_dir
-from repbench.records import identity_key
+from repbench.pipeline.executors import RunReport, make_executor, run_stages
+from repbench.pipeline.plan import build_plan
+from repbench.pipeline.preflight import check_out_dir
+from repbench.pipeline.records import identity_key
+from repbench.pipeline.runner import records_of_suite
+from repbench.pipeline.stages import RL
+from repbench.pipeline.store import Store
+from repbench.pipeline.suite import load_suite
 from repbench.registry import encoders
-from repbench.results import Results, build_results, installed_versions, load_records, select
-from repbench.runner import records_of_suite
-from repbench.stages import RL
-from repbench.store import Store
-from repbench.suite import load_suite
+from repbench.report.leaderboard import write_leaderboards
 
 
 @dataclass
@@ -52,7 +58,7 @@ def reference_dir(suite_name: str, reference: str | Path | None = None) -> Path:
             raise ConfigError(f"reference records folder {path} does not exist")
         return path
     candidates = [Path("leaderboards") / suite_name / "records",
-                  Path(__file__).resolve().parents[1] / "leaderboards" / suite_name / "records"]
+                  Path(__file__).resolve().parents[2] / "leaderboards" / suite_name / "records"]
     for path in candidates:
         if path.is_dir() and any(path.rglob("*.json")):
             return path

@@ -15,8 +15,8 @@ random (training) and on-policy datasets, as before.
 Keys depend only on configs and input keys, so the whole plan (and therefore where every result
 lives in the store) is known before anything runs. A plugin enters a key through its name, its
 parameters and its declared ``version`` (class attribute, default 0), never its source code: see
-:mod:`repbench.records` for the rule. Every stage also carries the context of its result record
-(``StageSpec.record``); ``repbench leaderboard`` selects stored records by their identity.
+:mod:`repbench.pipeline.records` for the rule. Every stage also carries the context of its result
+record (``StageSpec.record``); ``repbench leaderboard`` selects stored records by their identity.
 """
 
 from __future__ import annotations
@@ -29,10 +29,8 @@ from typing import Any
 
 from repbench.dataset import IMAGE
 from repbench.errors import ConfigError, RepbenchError
-from repbench.records import plugin_part, plugin_version
-from repbench.registry import agents, encoders, metrics, tasks
-from repbench.rl.full_state import PRIVILEGED_AGENT_PARAMS
-from repbench.stages import (
+from repbench.pipeline.records import plugin_part, plugin_version
+from repbench.pipeline.stages import (
     DATASET,
     DIAGNOSTICS,
     ENCODER,
@@ -42,7 +40,9 @@ from repbench.stages import (
     RL,
     StageSpec,
 )
-from repbench.suite import Suite
+from repbench.pipeline.suite import Suite
+from repbench.registry import agents, encoders, metrics, tasks
+from repbench.rl.full_state import PRIVILEGED_AGENT_PARAMS
 
 FULL_STATE_AGENT = "sac"
 
@@ -328,5 +328,5 @@ def _agent_validator(train_steps: int) -> Callable[[Any], None]:
 
 
 def _context(kind: str, task: dict[str, Any], **parts: Any) -> dict[str, Any]:
-    """The record context of a stage (:mod:`repbench.records`), JSON-clean."""
+    """The record context of a stage (:mod:`repbench.pipeline.records`), JSON-clean."""
     return jsonable_config({"kind": kind, "task": task, **parts})

@@ -88,7 +88,8 @@ def predict_from_rows(metric_rows: Iterable[Mapping[str, Any]],
                       rl_rows: Iterable[Mapping[str, Any]], encoder: str
                       ) -> list[dict[str, Any]]:
     """:func:`predict_return` for ``encoder`` for every task × agent in the reference rows
-    (:class:`repbench.results.Results` rows; ``encoder``'s own RL rows, if any, are ignored)."""
+    (:class:`repbench.analysis.results.Results` rows; ``encoder``'s own RL rows, if any, are
+    ignored)."""
     metric_rows, rl_rows = list(metric_rows), list(rl_rows)
     out = []
     for task, agent in sorted({(r["task"], r["agent"]) for r in rl_rows}):

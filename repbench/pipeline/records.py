@@ -40,7 +40,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from repbench.store import git_commit, library_versions
+from repbench.pipeline.store import git_commit, library_versions
 
 SCHEMA = "repbench.record"
 #: 2: records carry their own ``checksum``; 1 (still read): without it

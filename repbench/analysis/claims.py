@@ -9,7 +9,7 @@ sign is fixed here, before any data is seen, with a 95 % interval and a verdict:
 * **inconclusive** — the point estimate is on the claimed side but the interval includes 0 (or
   the Holm-adjusted p ≥ 0.05).
 
-Correlations are the metric leaderboard's Spearman ρ (:func:`repbench.correlation.
+Correlations are the metric leaderboard's Spearman ρ (:func:`repbench.analysis.correlation.
 metric_leaderboard`) over the *learned* encoders — the paper correlated its VAE family, not
 baselines — with the all-encoder value in the detail. Paired comparisons (low vs standard KL,
 with vs without the smoothing loss) average the difference over the paper's encoder pairs;
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from repbench.correlation import (
+from repbench.analysis.correlation import (
     BASELINE_FAMILY,
     batch_coefficients,
     bootstrap_resamples,
@@ -132,7 +132,8 @@ def _metric_samples(metric_rows: Sequence[Mapping[str, Any]], metric: str, task:
                                                               dict[str, np.ndarray]]:
     """Each encoder's metric value, and n draws from its bootstrap replicates — the same
     replicate indices for every encoder, which keeps the pairing of replicates computed on the
-    same resample of held-out episodes (as :func:`repbench.correlation.bootstrap_resamples`)."""
+    same resample of held-out episodes (as
+    :func:`repbench.analysis.correlation.bootstrap_resamples`)."""
     rows = [r for r in metric_rows if r["metric"] == metric and r["task"] == task]
     point = {r["encoder"]: float(r["value"]) for r in rows}
     if not rows:

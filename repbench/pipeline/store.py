@@ -107,7 +107,7 @@ def git_commit() -> str | None:
     """The git commit of the repbench code that runs: HEAD of the checkout the installed
     ``repbench`` package lives in (a source tree or an editable install); None when it lives in
     none (installed from a wheel). Never the commit of the folder the command runs in."""
-    return source_commit(Path(__file__).resolve().parent)
+    return source_commit(Path(__file__).resolve().parents[1])
 
 
 def source_commit(package_dir: Path) -> str | None:

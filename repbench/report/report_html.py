@@ -157,7 +157,7 @@ def _encoder_notes(res: Any) -> list[str]:
 
 
 def _claims_section(claims: pd.DataFrame | None) -> list[str]:
-    """The paper's claims with their numbers and verdicts (:mod:`repbench.claims`)."""
+    """The paper's claims with their numbers and verdicts (:mod:`repbench.analysis.claims`)."""
     if claims is None or claims.empty:
         return []
     out = ["<h2>Paper claims, checked</h2><p class='note'>Each claim of the paper as a signed "

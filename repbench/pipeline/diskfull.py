@@ -3,8 +3,9 @@
 Without this, every stage after the disk filled failed in turn with ``OSError: [Errno 28] No
 space left on device``. :func:`stop_when_full` turns that error, where a stage writes its
 artifact, into a :class:`~repbench.errors.DiskFullError`; the executors hand it back as fatal
-and :func:`repbench.executors.run_stages` stops the run with it (the CLI prints it as one line,
-exit code 2). Finished stages stay in the store, so the same command resumes once there is room.
+and :func:`repbench.pipeline.executors.run_stages` stops the run with it (the CLI prints it as one
+line, exit code 2). Finished stages stay in the store, so the same command resumes once there
+is room.
 """
 
 from __future__ import annotations
