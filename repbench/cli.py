@@ -116,8 +116,8 @@ def leaderboard(
 
 @app.command()
 def evaluate(
-    encoder: Annotated[str, typer.Argument(help="Registered encoder to evaluate (e.g. an "
-                                           "entry point of your package).")],
+    encoder: Annotated[str, typer.Argument(help="Encoder to evaluate: a registered name, or "
+                                           "path/to/file.py:Class, or module:Class.")],
     suite: Annotated[str, typer.Option("--suite", "-s", help="Suite whose reference "
                                        "leaderboard to join.")] = "smoke",
     metrics_only: Annotated[bool, typer.Option(

@@ -44,7 +44,7 @@ import numpy as np
 
 from repbench.dataset import FT, IMAGE, PROPRIO, TRUE_STATE, Dataset, as_observation_batch
 from repbench.errors import DataError, RepbenchError
-from repbench.references import import_reference
+from repbench.references import import_reference, reference_of
 
 E = TypeVar("E", bound="Encoder")
 
@@ -147,7 +147,7 @@ class Encoder(abc.ABC):
         path.parent.mkdir(parents=True, exist_ok=True)
         payload = {
             "format": _FORMAT,
-            "class": f"{type(self).__module__}:{type(self).__qualname__}",
+            "class": reference_of(type(self)),
             "params": self.get_params(),
             "state": _to_saveable(self.get_state()),
         }

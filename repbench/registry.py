@@ -5,7 +5,10 @@ Plugins arrive three ways, all ending in the same table:
 * a decorator, ``@encoders.register("my_vae")``, on a class or function;
 * a lazy reference, ``encoders.register("my_vae", "my_pkg.models:MyVAE")``, imported on first use;
 * an entry point in the group ``repbench.<kind>`` of any installed distribution (repbench's own
-  built-in plugins are found this way too), discovered on first lookup.
+  built-in plugins are found this way too), discovered on first lookup;
+* a reference used as the name, ``encoders.get("my_encoder.py:MyVAE")`` (or
+  ``"my_pkg.models:MyVAE"``): registered under that name on first lookup, in every process that
+  looks it up, so a plugin in a plain file works in suites, worker processes and records.
 
 Unknown names get close matches and the list of known names; duplicates are rejected; every
 loaded plugin is checked against its kind's base (``Registry("encoder", base=Encoder)``).
@@ -29,7 +32,7 @@ from repbench.agent import Agent
 from repbench.encoder import Encoder
 from repbench.errors import PluginError
 from repbench.metric_types import Metric
-from repbench.references import import_reference
+from repbench.references import import_reference, is_reference
 from repbench.task import Task
 
 T = TypeVar("T")
@@ -150,12 +153,20 @@ class Registry(Generic[T]):
         """Return the plugin registered as ``name``, importing it if needed."""
         self.discover()
         entry = self._entries.get(name)
+        if entry is None and isinstance(name, str) and is_reference(name):
+            entry = _Entry(name, reference=name, source="reference given as the name")
+            self._entries[name] = entry
         if entry is None:
             raise PluginError(self._unknown_message(name))
         if entry.target is None:
             assert entry.reference is not None
-            obj = import_reference(entry.reference)
-            self._validate(name, obj)
+            try:
+                obj = import_reference(entry.reference)
+                self._validate(name, obj)
+            except PluginError:
+                if entry.source == "reference given as the name":
+                    del self._entries[name]  # a typo is not left registered
+                raise
             entry.target = obj
         return entry.target  # type: ignore[no-any-return]
 

@@ -35,6 +35,7 @@ from repbench.pipeline.runner import records_of_suite
 from repbench.pipeline.stages import RL
 from repbench.pipeline.store import Store
 from repbench.pipeline.suite import load_suite
+from repbench.references import is_reference
 from repbench.registry import encoders
 from repbench.report.leaderboard import write_leaderboards
 
@@ -67,6 +68,15 @@ def reference_dir(suite_name: str, reference: str | Path | None = None) -> Path:
                       f"`repbench run --suite {suite_name}` to make them")
 
 
+def _folder_name(encoder: str) -> str:
+    """A folder name for ``encoder`` (``my_encoder.py:MyVAE`` → ``my_encoder-MyVAE``)."""
+    if not is_reference(encoder):
+        return encoder
+    module, _, attr = encoder.rpartition(":")
+    stem = Path(module).stem if module.endswith(".py") else module
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in f"{stem}-{attr}")
+
+
 def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only: bool = False,
                      store: str | Path | None = None, out: str | Path | None = None,
                      reference: str | Path | None = None, executor: str = "local",
@@ -75,11 +85,13 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     start = time.time()
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
-    if encoder not in encoders:
+    if is_reference(encoder):
+        encoders.get(encoder)  # a file or module reference: a bad one fails here, in one line
+    elif encoder not in encoders:
         raise ConfigError(encoders._unknown_message(encoder))
     base = load_suite(suite)
     out_dir = check_out_dir(out if out is not None
-                            else Path("leaderboards") / f"{base.name}-{encoder}")
+                            else Path("leaderboards") / f"{base.name}-{_folder_name(encoder)}")
     ref_dir = reference_dir(base.name, reference)
     dropped: list[str] = []  # reference or new records left out (edited, truncated ...)
     reference_records = load_records(ref_dir, problems=dropped)

@@ -41,6 +41,7 @@ from repbench.pipeline.stages import (
     StageSpec,
 )
 from repbench.pipeline.suite import Suite
+from repbench.references import source_digest
 from repbench.registry import agents, encoders, metrics, tasks
 from repbench.rl.full_state import PRIVILEGED_AGENT_PARAMS
 
@@ -234,8 +235,10 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
         construct_checked(suite, f"encoder_params.{enc_name}", cls, params,
                           lambda e: e.check_params())
         enc_part = plugin_part(enc_name, cls, params)
+        source = source_digest(cls)  # an encoder from a plain file: its content is in the key
         enc = StageSpec(ENCODER, jsonable_config({
-            "encoder": enc_name, "params": params, "version": plugin_version(cls)}),
+            "encoder": enc_name, "params": params, "version": plugin_version(cls),
+            **({"source_sha256": source} if source else {})}),
             inputs={"dataset": _ref(random_ds)}, label=f"{task_name} encoder {enc_name}",
             record=_context("encoder", task_part, data={"random": random_data},
                             encoder=enc_part, data_stages={"random": random_ds.key}))

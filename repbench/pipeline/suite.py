@@ -152,13 +152,17 @@ class Suite(_Strict):
         return v
 
     def check_plugins(self) -> None:
-        """Check every named plugin is registered (reads entry points; imports nothing heavy)."""
+        """Check every named plugin is registered (reads entry points; imports nothing heavy) and
+        every plugin given by reference (``file.py:Class``, ``module:Class``) imports."""
+        from repbench.references import is_reference
         from repbench.registry import REGISTRIES
 
         for field_name in ("tasks", "encoders", "metrics", "agents"):
             reg = REGISTRIES[field_name]
             for name in getattr(self, field_name):
-                if name not in reg:
+                if is_reference(name):
+                    reg.get(name)  # a bad reference fails here, in one line naming it
+                elif name not in reg:
                     raise ConfigError(f"suite {self.source or self.name}, field "
                                       f"{field_name!r}: {reg._unknown_message(name)}")
         for field_name, kind in (("task_params", "tasks"), ("heldout_task_params", "tasks"),

@@ -77,3 +77,20 @@ def test_each_core_module_imports_alone(module: str) -> None:
     out = subprocess.run([sys.executable, "-c", f"import repbench.{module}"],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
+
+
+@pytest.mark.parametrize(("old", "new"), [("store", "pipeline.store"),
+                                          ("results", "analysis.results"),
+                                          ("leaderboard", "report.leaderboard")])
+def test_moved_module_imports_from_its_old_path_with_a_warning(old: str, new: str) -> None:
+    """``repbench.<module>`` moved into a subpackage: the old path gives the same module, and a
+    DeprecationWarning names the new one."""
+    code = (f"import warnings; warnings.simplefilter('error'); import repbench\n"
+            f"try:\n    import repbench.{old}\nexcept DeprecationWarning as w:\n    print(w)\n"
+            f"warnings.simplefilter('ignore')\nimport repbench.{old} as a, repbench.{new} as b\n"
+            f"print(a is b)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == [f"repbench.{old} moved to repbench.{new}; import it from "
+                                       "there", "True"]

@@ -67,3 +67,20 @@ def test_third_party_encoder_evaluated_metrics_only(smoke_run: SuiteRun, tmp_pat
     html = (out_dir / "index.html").read_text()
     assert '<tr class="highlight"' in html and "Predicted sac return of mean_pixel" in html
 
+
+def test_encoder_in_a_plain_file_evaluated_metrics_only(smoke_run: SuiteRun,
+                                                        tmp_path: Path) -> None:
+    """`repbench evaluate my_encoder.py:MeanPixel`: no package, no entry point; the stages run
+    in 2 worker processes, which resolve the file reference themselves (issue 24, item 3)."""
+    (tmp_path / "my_encoder.py").write_text(_PLUGIN_MODULE)
+    out_dir = tmp_path / "lb"
+    spec = "my_encoder.py:MeanPixel"
+    proc = subprocess.run([sys.executable, "-m", "repbench.cli", "evaluate", spec,
+                           "--suite", "smoke", "--metrics-only", "--store", str(smoke_run.store),
+                           "--out", str(out_dir), "--workers", "2"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert f"predicted sac return of {spec}" in proc.stdout
+    enc = pd.read_csv(out_dir / "encoders.csv").set_index("encoder")
+    assert enc.loc[spec, ["ksg", "regression", "coherence"]].notna().all()
+    assert pd.notna(enc.loc[spec, "sac_predicted_return"])
