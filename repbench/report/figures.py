@@ -25,6 +25,13 @@ import numpy as np
 import pandas as pd
 
 from repbench.analysis.correlation import mean_ci
+from repbench.report.families import (
+    encoder_families,
+    family_legend,
+    family_order,
+    family_style,
+)
+from repbench.report.svg import figure_svg, inline_svg, write_svg
 
 
 def _colors(names: list[str]) -> dict[str, Any]:
@@ -42,78 +49,234 @@ def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = 110, tight: b
     return path
 
 
+_GRID_COLS = 4
+
+
+def _returns_by_encoder(res: Any, agent: str) -> dict[str, tuple[float, float, float]]:
+    """encoder → (mean, CI low, CI high) of the final return of ``agent`` over seeds."""
+    rets: dict[str, list[float]] = {}
+    for r in res.rl_rows:
+        if r["agent"] == agent:
+            rets.setdefault(r["encoder"], []).append(r["eval_return"])
+    return {e: mean_ci(v) for e, v in rets.items()}
+
+
+def _label_candidates(returns: Mapping[str, tuple[float, float, float]],
+                      families: Mapping[str, str], n_extreme: int = 2) -> list[str]:
+    """Encoders worth a text label, most important first: the baselines, then the learned
+    encoders with the highest and the lowest return."""
+    base = sorted(e for e in returns if families.get(e) == "baselines")
+    learned = sorted((e for e in returns if e not in base), key=lambda e: -returns[e][0])
+    extreme = learned[:n_extreme] + learned[::-1][:n_extreme]
+    return base + [e for i, e in enumerate(extreme) if e not in extreme[:i]]
+
+
+def _prune_labels(fig: Any, labels: list[tuple[Any, Any]]) -> None:
+    """Remove each text label (in priority order) that would overlap a kept one or leave its
+    panel; ``labels`` holds (axes, annotation) pairs."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    kept: dict[Any, list[Any]] = {}
+    for ax, text in labels:
+        box = text.get_window_extent(renderer).expanded(1.05, 1.1)
+        inside = ax.bbox.x0 <= box.x0 and box.x1 <= ax.bbox.x1 + 2 and box.y1 <= ax.bbox.y1
+        if not inside or any(box.overlaps(k) for k in kept.get(ax, [])):
+            text.remove()
+        else:
+            kept.setdefault(ax, []).append(box)
+
+
+def _scatter_panel(ax: Any, res: Any, metric: str, agent: str,
+                   returns: Mapping[str, tuple[float, float, float]],
+                   families: Mapping[str, str], titles: dict[str, str]) -> dict[str, Any]:
+    """One metric × agent panel: a point per encoder (family colour and marker, CI bars);
+    each point gets a gid and its hover text in ``titles``; returns encoder → (x, y)."""
+    points: dict[str, Any] = {}
+    for r in res.metric_rows:
+        enc = r["encoder"]
+        if r["metric"] != metric or enc not in returns:
+            continue
+        m, lo, hi = returns[enc]
+        x = r["value"]
+        color, marker = family_style(families.get(enc, ""))
+        xerr = None
+        if r.get("ci_low") is not None and r.get("ci_high") is not None:
+            xerr = [[max(0.0, x - r["ci_low"])], [max(0.0, r["ci_high"] - x)]]
+        yerr = [[m - lo], [hi - m]] if np.isfinite(lo) else None
+        ax.errorbar(x, m, xerr=xerr, yerr=yerr, fmt="none", ecolor=color, alpha=0.35,
+                    elinewidth=0.8, capsize=0)
+        gid = f"mvr-{len(titles)}"
+        ax.plot([x], [m], ls="none", marker=marker, color=color, ms=5.5, mec="white",
+                mew=0.5, gid=gid, zorder=3)
+        titles[gid] = (f"{enc} ({families.get(enc, '?')}): {metric}={x:.4g}, "
+                       f"{agent} return={m:.4g}" + (f" [{lo:.4g}, {hi:.4g}]"
+                                                    if np.isfinite(lo) else ""))
+        points[enc] = (x, m)
+    return points
+
+
+def _fit_limits(ax: Any, points: Mapping[str, tuple[float, float]], pad: float = 0.08
+                ) -> None:
+    """Axis limits around the points, not their CI bars (a few wide intervals would squash
+    every point into a corner; the bars run off the edge instead)."""
+    xy = np.array([p for p in points.values() if np.all(np.isfinite(p))], dtype=float)
+    if len(xy) < 2:
+        return
+    for set_lim, col in ((ax.set_xlim, xy[:, 0]), (ax.set_ylim, xy[:, 1])):
+        lo, hi = float(col.min()), float(col.max())
+        span = (hi - lo) or max(abs(hi), 1.0)
+        set_lim(lo - pad * span, hi + pad * span)
+
+
+def _panel_title(res: Any, metric: str, agent: str, correlations: pd.DataFrame | None,
+                 n_agents: int) -> str:
+    """``metric ↑/↓ ρ=…`` (the direction-adjusted Spearman ρ), with the agent when several."""
+    arrow = "↑" if res.provenance.get("directions", {}).get(metric, True) else "↓"
+    rho = ""
+    if correlations is not None and not correlations.empty:
+        hit = correlations[(correlations["agent"] == agent)
+                           & (correlations["metric"] == metric)]
+        if len(hit) and np.isfinite(hit["spearman"].iloc[0]):
+            rho = f"   ρ = {hit['spearman'].iloc[0]:+.2f}"
+    return (f"{agent} · " if n_agents > 1 else "") + f"{metric} {arrow}{rho}"
+
+
 def metric_vs_return(res: Any, path: Path, correlations: pd.DataFrame | None = None
                      ) -> Path | None:
-    """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI);
-    panel titles carry the direction-adjusted Spearman ρ from ``correlations``."""
+    """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI), as
+    a grid of panels (4 columns, a block of rows per agent); points coloured by encoder
+    family, text labels on the baselines and the best and worst encoders where they fit;
+    panel titles carry the direction-adjusted Spearman ρ from ``correlations``.
+
+    Writes ``path`` (PNG) and, next to it, the same figure as SVG in which every point has
+    a hover title naming its encoder (the page inlines that one); returns ``path``."""
     if not res.metric_rows or not res.rl_rows:
         return None
     metrics = sorted({r["metric"] for r in res.metric_rows})
     agents = sorted({r["agent"] for r in res.rl_rows})
-    encs = sorted({r["encoder"] for r in res.metric_rows})
-    colors = _colors(encs)
-    fig, axes = plt.subplots(len(agents), len(metrics), squeeze=False,
-                             figsize=(3.0 * len(metrics), 2.8 * len(agents)))
+    families = encoder_families(res)
+    cols = min(_GRID_COLS, len(metrics))
+    per_agent = -(-len(metrics) // cols)
+    fig, axes = plt.subplots(per_agent * len(agents), cols, squeeze=False,
+                             figsize=(3.4 * cols, 2.9 * per_agent * len(agents)))
+    titles: dict[str, str] = {}
+    labels: list[tuple[Any, Any]] = []
+    drawn: set[str] = set()
     for i, agent in enumerate(agents):
-        rets: dict[str, list[float]] = {}
-        for r in res.rl_rows:
-            if r["agent"] == agent:
-                rets.setdefault(r["encoder"], []).append(r["eval_return"])
-        for j, metric in enumerate(metrics):
-            ax = axes[i][j]
-            for r in res.metric_rows:
-                if r["metric"] != metric or r["encoder"] not in rets:
-                    continue
-                m, lo, hi = mean_ci(rets[r["encoder"]])
-                x = r["value"]
-                xerr = None
-                if r.get("ci_low") is not None and r.get("ci_high") is not None:
-                    xerr = [[max(0.0, x - r["ci_low"])], [max(0.0, r["ci_high"] - x)]]
-                yerr = [[m - lo], [hi - m]] if np.isfinite(lo) else None
-                ax.errorbar(x, m, xerr=xerr, yerr=yerr, fmt="o", color=colors[r["encoder"]],
-                            ms=5, capsize=2, label=r["encoder"])
-                ax.annotate(r["encoder"], (x, m), fontsize=6, xytext=(3, 3),
-                            textcoords="offset points")
-            arrow = "↑" if res.provenance.get("directions", {}).get(metric, True) else "↓"
-            rho = ""
-            if correlations is not None and not correlations.empty:
-                hit = correlations[(correlations["agent"] == agent)
-                                   & (correlations["metric"] == metric)]
-                if len(hit) and np.isfinite(hit["spearman"].iloc[0]):
-                    rho = f"  ρ={hit['spearman'].iloc[0]:+.2f}"
-            ax.set_title(f"{metric} {arrow}{rho}", fontsize=9)
-            ax.tick_params(labelsize=7)
-            if j == 0:
-                ax.set_ylabel(f"{agent} eval return", fontsize=8)
-    fig.suptitle("Metric vs RL return (one point per encoder; bars: CI)", fontsize=10)
-    fig.tight_layout()
+        returns = _returns_by_encoder(res, agent)
+        candidates = _label_candidates(returns, families)
+        for j in range(per_agent * cols):
+            ax = axes[i * per_agent + j // cols][j % cols]
+            if j >= len(metrics):
+                ax.set_axis_off()
+                continue
+            points = _scatter_panel(ax, res, metrics[j], agent, returns, families, titles)
+            drawn |= set(points)
+            _fit_limits(ax, points)
+            ax.set_title(_panel_title(res, metrics[j], agent, correlations, len(agents)),
+                         fontsize=9.5)
+            ax.tick_params(labelsize=7.5)
+            ax.grid(alpha=0.25, lw=0.5)
+            if j % cols == 0:
+                ax.set_ylabel(f"{agent} return", fontsize=8.5)
+            labels += [(ax, ax.annotate(e, points[e], fontsize=7, xytext=(4, 3),
+                                        textcoords="offset points", color="#333"))
+                       for e in candidates if e in points]
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    fig.subplots_adjust(wspace=0.25)  # tight_layout leaves room for the clipped CI bars
+    family_legend(fig, {families.get(e, "") for e in drawn}, y=0.97)
+    _prune_labels(fig, labels)
+    write_svg(inline_svg(figure_svg(fig, titles)), Path(path).with_suffix(".svg"))
     return save_figure(fig, path)
 
 
+_MULTI_COLS = 8
+_CONTEXT_GREY = "#d5d5d5"
+
+
+def small_multiples(blocks: list[tuple[str, Mapping[str, Any]]], families: Mapping[str, str],
+                    draw: Any, xlabel: str = "", cols: int = _MULTI_COLS, ymax: Any = None
+                    ) -> Any:
+    """One small panel per encoder (family order): that encoder drawn in its family colour
+    over every other encoder in light grey, the panel title naming it. ``blocks`` holds
+    (y label, encoder → curve) pairs, e.g. one per agent: each starts a new row of panels and
+    shares one y axis. ``draw(ax, curve, color, lw, zorder)`` draws one curve. With ``ymax``
+    (curve → top of the y axis) each panel is scaled to its own encoder instead, the grey
+    context clipped (for shapes whose heights differ 100-fold)."""
+    layout = [(ylabel, family_order(families, curves), curves) for ylabel, curves in blocks]
+    n_rows = [-(-len(encs) // cols) for _, encs, _ in layout]
+    fig, axes = plt.subplots(sum(n_rows), cols, squeeze=False, sharex=True,
+                             figsize=(1.55 * cols, 1.4 * sum(n_rows) + 0.45))
+    row = 0
+    for (ylabel, encs, curves), rows in zip(layout, n_rows, strict=True):
+        block = axes[row:row + rows].flat
+        for k, ax in enumerate(block):
+            if k >= len(encs):
+                ax.set_axis_off()
+                continue
+            if k and ymax is None:
+                ax.sharey(axes[row][0])
+            _multiple_panel(ax, encs[k], curves, families, draw)
+            if ymax is not None:
+                ax.set_ylim(0, ymax(curves[encs[k]]))
+            if k % cols == 0:
+                ax.set_ylabel(ylabel, fontsize=8)
+            if k + cols >= len(encs):
+                ax.set_xlabel(xlabel, fontsize=7.5)
+                ax.xaxis.set_tick_params(labelbottom=True)
+            if k % cols and ymax is None:
+                ax.yaxis.set_tick_params(labelleft=False)
+        row += rows
+    fig.tight_layout(rect=(0, 0, 1, 0.97), h_pad=0.6, w_pad=0.4)
+    family_legend(fig, {families.get(e, "") for _, encs, _ in layout for e in encs}, y=0.97)
+    return fig
+
+
+def _multiple_panel(ax: Any, enc: str, curves: Mapping[str, Any], families: Mapping[str, str],
+                    draw: Any) -> None:
+    """One panel of :func:`small_multiples`: the others grey, ``enc`` in colour, named."""
+    for other, curve in curves.items():
+        if other != enc:
+            draw(ax, curve, _CONTEXT_GREY, 0.7, 1)
+    color = family_style(families.get(enc, ""))[0]
+    draw(ax, curves[enc], color, 1.6, 3)
+    ax.set_title(enc, fontsize=8, color=color, pad=2)
+    ax.tick_params(labelsize=6.5, pad=1)
+    ax.grid(alpha=0.25, lw=0.5)
+
+
+def _mean_curve(runs: list[Mapping[str, Any]]) -> tuple[np.ndarray, np.ndarray]:
+    """(steps, mean return over seeds), cut to the shortest curve."""
+    n = min(len(r["curve_steps"]) for r in runs)
+    ys = np.array([r["curve_return"][:n] for r in runs], dtype=float)
+    return np.asarray(runs[0]["curve_steps"][:n], dtype=float), ys.mean(0)
+
+
+def _draw_line(ax: Any, curve: tuple[Any, Any], color: Any, lw: float, zorder: int) -> None:
+    ax.plot(curve[0], curve[1], color=color, lw=lw, zorder=zorder)
+
+
 def learning_curves(res: Any, path: Path) -> Path | None:
-    """Mean learning curve over seeds for every encoder, one panel per agent."""
+    """Mean learning curve over seeds, one small panel per encoder (the others in grey), a
+    block of panels per agent stacked into one figure."""
     if not res.rl_rows:
         return None
+    families = encoder_families(res)
     agents = sorted({r["agent"] for r in res.rl_rows})
-    encs = sorted({r["encoder"] for r in res.rl_rows})
-    colors = _colors(encs)
-    fig, axes = plt.subplots(1, len(agents), squeeze=False, figsize=(5 * len(agents), 3.4))
-    for ax, agent in zip(axes[0], agents, strict=True):
-        for enc in encs:
+    blocks = []
+    for agent in agents:
+        curves: dict[str, Any] = {}
+        for enc in sorted({r["encoder"] for r in res.rl_rows if r["agent"] == agent}):
             runs = [r for r in res.rl_rows if r["agent"] == agent and r["encoder"] == enc
                     and r.get("curve_steps")]
-            if not runs:
-                continue
-            n = min(len(r["curve_steps"]) for r in runs)
-            steps = np.asarray(runs[0]["curve_steps"][:n])
-            ys = np.array([r["curve_return"][:n] for r in runs], dtype=float)
-            ax.plot(steps, ys.mean(0), marker=".", color=colors[enc], label=enc)
-        ax.set_title(f"{agent}: return during training", fontsize=9)
-        ax.set_xlabel("environment steps", fontsize=8)
-        ax.set_ylabel("return", fontsize=8)
-        ax.tick_params(labelsize=7)
-    axes[0][-1].legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
+            if runs:
+                curves[enc] = _mean_curve(runs)
+        if curves:
+            blocks.append((agent, curves))
+    if not blocks:
+        return None
+    fig = small_multiples([(f"{agent} return", curves) for agent, curves in blocks], families,
+                          _draw_line, xlabel="env. steps")
     return save_figure(fig, path)
 
 
@@ -151,47 +314,70 @@ def _smoothness_extras(res: Any) -> dict[str, Mapping[str, Any]]:
 
 
 def latent_distance(res: Any, path: Path) -> Path | None:
-    """E‖z_n − z_{n+T}‖ against T for every encoder (from the smoothness metric's extras)."""
+    """E‖z_n − z_{n+T}‖ against T (from the smoothness metric's extras), one small panel per
+    encoder with the others in grey."""
     extras = _smoothness_extras(res)
-    curves = {e: x["latent_distance"] for e, x in extras.items() if x.get("latent_distance")}
+    curves = {e: (x["latent_distance"]["offsets"],
+                  x["latent_distance"].get("mean_distance_normalized")
+                  or x["latent_distance"]["mean_distance"])
+              for e, x in extras.items() if x.get("latent_distance")}
     if not curves:
         return None
-    colors = _colors(list(curves))
-    fig, ax = plt.subplots(figsize=(5.5, 3.6))
-    for enc, c in sorted(curves.items()):
-        y = c.get("mean_distance_normalized") or c["mean_distance"]
-        ax.plot(c["offsets"], y, marker=".", color=colors[enc], label=enc)
-    ax.set_xlabel("time offset T (steps)")
-    ax.set_ylabel("E‖z_n − z_{n+T}‖ / scale of z")
-    ax.set_title("Latent distance against time offset", fontsize=10)
-    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
+    fig = small_multiples([("‖z_n − z_{n+T}‖ / scale", curves)], encoder_families(res),
+                          _draw_line, xlabel="offset T (steps)")
     return save_figure(fig, path)
+
+
+def _density(h: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """(fraction of pairs per decade of the ratio, bin edges) of a stored histogram (overflow
+    counted). Per decade, because every encoder has its own bins, some 100× wider than
+    others: a fraction per bin would draw wide bins tall. A first edge at 0 becomes half the
+    next edge so the ratio can be drawn on a log axis."""
+    counts = np.asarray(h["counts"], dtype=float)
+    edges = np.asarray(h["bin_edges"], dtype=float).copy()
+    if len(edges) > 1 and edges[0] <= 0:
+        edges[0] = edges[1] / 2
+    frac = counts / max(1.0, counts.sum() + h.get("overflow", 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        per_decade = np.where(np.diff(np.log10(edges)) > 0, frac / np.diff(np.log10(edges)), 0)
+    return np.nan_to_num(per_decade), edges
+
+
+def _draw_stairs(ax: Any, curve: tuple[Any, Any], color: Any, lw: float, zorder: int) -> None:
+    ax.stairs(curve[0], curve[1], color=color, lw=lw, zorder=zorder)
 
 
 def smoothness_hist(res: Any, path: Path) -> Path | None:
-    """Histogram of ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ for every encoder."""
+    """Histogram of ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖, one small panel per encoder with the
+    others in grey."""
     extras = _smoothness_extras(res)
-    hists = {e: x["histogram"] for e, x in extras.items() if x.get("histogram")}
+    hists = {e: _density(x["histogram"]) for e, x in extras.items() if x.get("histogram")}
     if not hists:
         return None
-    colors = _colors(list(hists))
-    fig, ax = plt.subplots(figsize=(5.5, 3.6))
-    for enc, h in sorted(hists.items()):
-        edges = np.asarray(h["bin_edges"], dtype=float)
-        counts = np.asarray(h["counts"], dtype=float)
-        dens = counts / max(1.0, counts.sum() + h.get("overflow", 0))
-        ax.stairs(dens, edges, color=colors[enc], label=enc)
+    fig = small_multiples([("pairs per decade", hists)], encoder_families(res), _draw_stairs,
+                          xlabel="‖Δz‖ / ‖Δz°‖ (log)",
+                          ymax=lambda c: 1.15 * float(np.max(c[0], initial=0)) or 1.0)
+    _log_ratio_axis(fig.axes[0], extras, hists)
+    return save_figure(fig, path)
+
+
+def _log_ratio_axis(ax: Any, extras: Mapping[str, Mapping[str, Any]],
+                    hists: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    """Log x axis (shared by every panel) from the lowest bin edge to 1.5 × the largest 95th
+    percentile (the far tail of one encoder would squash every histogram), ticks at the
+    powers of ten inside."""
+    ax.set_xscale("log")
     q95 = [float(x["quantiles"]["0.95"]) for x in extras.values()
            if isinstance(x.get("quantiles"), dict) and "0.95" in x["quantiles"]]
-    if q95:  # the far tail of one encoder would squash every histogram
-        ax.set_xlim(0, 1.5 * max(q95))
-    ax.set_xlabel("‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ (each standardized)")
-    ax.set_ylabel("fraction of pairs")
-    ax.set_title("Encoder smoothness", fontsize=10)
-    ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.tight_layout()
-    return save_figure(fig, path)
+    lows = [float(c[1][0]) for c in hists.values() if len(c[1])]
+    if not (q95 and lows):
+        return
+    lo, hi = min(lows), 1.5 * max(q95)
+    ax.set_xlim(lo, hi)
+    ticks = [10.0 ** k for k in range(int(np.floor(np.log10(lo))), int(np.ceil(np.log10(hi))))
+             if lo * 1.5 < 10.0 ** k < hi / 1.5]
+    if ticks:
+        ax.set_xticks(ticks)
 
 
 def true_state_diffs(res: Any, path: Path) -> Path | None:
@@ -255,8 +441,10 @@ def loss_curves(history: list[Mapping[str, Any]], path: str | os.PathLike[str],
     return save_figure(fig, path)
 
 
-_STORE_FIGURE_TITLES = {"reconstructions": "Reconstructions: {} (appendix figure)",
-                        "loss_curves": "Training curves: {} (train and held-out loss per epoch)"}
+#: kind of a per-encoder figure from the stage store → its heading on the page; the page lists
+#: them as ``"<heading>: <encoder>"`` (see :func:`per_encoder_figures`).
+STORE_FIGURE_HEADINGS = {"loss_curves": "Training curves (train and held-out loss per epoch)",
+                         "reconstructions": "Reconstructions (appendix figure)"}
 
 
 def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
@@ -320,11 +508,46 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
     for title, (fn, stem) in makers.items():
         p = fn(res, out_dir / f"{stem}.png")
         if p is not None:
-            out[title] = p
+            out[title] = p.with_suffix(".svg") if p.with_suffix(".svg").is_file() else p
+            shrink_png(p)
     for name, src in sorted(res.figures_from_store.items()):
         dest = out_dir / f"{name.replace(' ', '_')}.png"
         dest.parent.mkdir(parents=True, exist_ok=True)
         dest.write_bytes(src.read_bytes())
+        shrink_png(dest)
         kind, enc = name.split(" ", 1)
-        out[_STORE_FIGURE_TITLES.get(kind, kind + ": {}").format(enc)] = dest
+        out[f"{STORE_FIGURE_HEADINGS.get(kind, kind)}: {enc}"] = dest
     return out
+
+
+def per_encoder_figures(figures: Mapping[str, Path]
+                        ) -> tuple[dict[str, Path], dict[str, list[tuple[str, Path]]]]:
+    """Split :func:`make_figures`'s output into the suite's figures (title → path) and the
+    per-encoder figures from the store (heading → [(encoder, path)])."""
+    shared: dict[str, Path] = {}
+    groups: dict[str, list[tuple[str, Path]]] = {}
+    headings = set(STORE_FIGURE_HEADINGS.values())
+    for title, path in figures.items():
+        heading, sep, enc = title.partition(": ")
+        if sep and heading in headings:
+            groups.setdefault(heading, []).append((enc, path))
+        else:
+            shared[title] = path
+    return shared, groups
+
+
+def shrink_png(path: Path, colors: int = 256) -> Path:
+    """Rewrite a PNG with a palette of at most ``colors`` colours (plots and the small
+    rendered frames look the same; the file, which the page inlines, is 2–3× smaller);
+    kept as it is when that would not make it smaller."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        small = im.convert("RGB").quantize(colors, method=Image.Quantize.MEDIANCUT)
+    tmp = path.with_name(f".{path.name}.tmp")
+    small.save(tmp, format="PNG", optimize=True)
+    if tmp.stat().st_size < path.stat().st_size:
+        tmp.replace(path)
+    else:
+        tmp.unlink()
+    return path

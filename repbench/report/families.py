@@ -1,0 +1,68 @@
+"""Encoder families as the figures show them: one colour and marker per family, so a reader
+matches a point or a panel to a kind of encoder without a 23-entry legend.
+
+The plugin's ``family`` attribute says ``vae``, ``contrastive``, ``supervised`` or
+``baseline``; the VAE family is split here by name into the paper's VAEs, their low-KL twins
+(``<name>_lowkl``) and the ablations of those twins (``<name>_lowkl_<variant>``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from matplotlib.lines import Line2D
+
+#: display family → (colour, marker); the order is the legend's and the panels' order.
+FAMILY_STYLE: dict[str, tuple[str, str]] = {
+    "paper VAEs": ("#1f77b4", "o"),
+    "low-KL twins": ("#ff7f0e", "D"),
+    "ablations": ("#9467bd", "v"),
+    "contrastive": ("#2ca02c", "^"),
+    "supervised": ("#d62728", "P"),
+    "baselines": ("#3a3a3a", "s"),
+}
+_OTHER_STYLE = ("#8c564b", "X")
+_PLUGIN_FAMILY = {"baseline": "baselines", "contrastive": "contrastive",
+                  "supervised": "supervised"}
+
+
+def display_family(encoder: str, family: str | None) -> str:
+    """The family an encoder is drawn as, from its plugin ``family`` and its name."""
+    if family == "vae":
+        if encoder.endswith("_lowkl"):
+            return "low-KL twins"
+        return "ablations" if "_lowkl_" in encoder else "paper VAEs"
+    return _PLUGIN_FAMILY.get(str(family), str(family or "learned"))
+
+
+def family_style(family: str) -> tuple[str, str]:
+    """(colour, marker) of a display family; unknown families share one extra style."""
+    return FAMILY_STYLE.get(family, _OTHER_STYLE)
+
+
+def encoder_families(res: Any) -> dict[str, str]:
+    """encoder → display family for every encoder of ``res`` (a :class:`Results`)."""
+    from repbench.report.leaderboard import _families, _family
+
+    plugin = _families(res)
+    for r in res.rl_rows:
+        plugin.setdefault(r["encoder"], _family(r["encoder"]))
+    return {n: display_family(n, f) for n, f in plugin.items()}
+
+
+def family_order(families: Mapping[str, str], encoders: Iterable[str]) -> list[str]:
+    """``encoders`` sorted by display family (legend order), then by name."""
+    rank = {f: i for i, f in enumerate(FAMILY_STYLE)}
+    return sorted(encoders, key=lambda e: (rank.get(families.get(e, ""), len(rank)), e))
+
+
+def family_legend(fig: Any, families: Iterable[str], y: float = 1.0) -> Any:
+    """One small legend (a row of family markers) centred at the top of ``fig``."""
+    present = [f for f in (*FAMILY_STYLE, *sorted(set(families) - set(FAMILY_STYLE)))
+               if f in set(families)]
+    handles = [Line2D([], [], ls="none", marker=family_style(f)[1], color=family_style(f)[0],
+                      ms=6, label=f) for f in present]
+    return fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, y),
+                      ncol=len(handles), fontsize=9, frameon=False, handletextpad=0.3,
+                      columnspacing=1.4)
