@@ -30,6 +30,11 @@ td.txt,th.txt{text-align:left}tr:hover td{background:#fafbff}
 code{background:#f2f2f6;padding:1px 4px;border-radius:3px}
 tr.stale td{color:#8a8f99;font-style:italic}
 tr.highlight td{background:#fff3c4;font-weight:600}
+.svgfig svg{display:block;max-width:100%;height:auto}
+.svgfig svg g[id^="mvr-"]{cursor:pointer}.svgfig svg g[id^="mvr-"]:hover{opacity:.6}
+details{margin:2px 0}summary{cursor:pointer;font-size:13px;padding:2px 0}
+.per-encoder details{display:inline-block;vertical-align:top;margin-right:14px}
+.per-encoder details[open]{display:block}
 """
 
 _JS = """
@@ -99,6 +104,31 @@ def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True,
 def _img(path: Path, alt: str) -> str:
     data = base64.b64encode(path.read_bytes()).decode()
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def _figure(path: Path, alt: str) -> str:
+    """A figure for the page: SVG inline (its hover titles work), anything else as an image."""
+    if path.suffix == ".svg":
+        return f"<div class='svgfig' role='img' aria-label='{html.escape(alt)}'>" + (
+            path.read_text(encoding="utf-8")) + "</div>"
+    return _img(path, alt)
+
+
+def _figures_section(figures: dict[str, Path]) -> list[str]:
+    """The suite's figures open, then each kind of per-encoder figure (training curves,
+    reconstructions) as one closed ``<details>`` per encoder, so the page stays short."""
+    from repbench.report.figures import per_encoder_figures
+
+    shared, groups = per_encoder_figures(figures)
+    out = [f"<div class='fig'><h3>{html.escape(name)}</h3>{_figure(path, name)}</div>"
+           for name, path in shared.items()]
+    for heading, items in groups.items():
+        out.append(f"<div class='fig per-encoder'><h3>{html.escape(heading)}</h3>"
+                   f"<p class='sub'>One per encoder; click a name to open it.</p>")
+        out.extend(f"<details><summary>{html.escape(enc)}</summary>"
+                   f"{_img(path, f'{heading}: {enc}')}</details>" for enc, path in items)
+        out.append("</div>")
+    return out
 
 
 def _privileged_section(prov: dict[str, Any]) -> list[str]:
@@ -253,8 +283,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         *_privileged_section(prov),
         "<h2>Figures</h2>",
     ]
-    for name, path in figures.items():
-        parts.append(f"<div class='fig'><h3>{html.escape(name)}</h3>{_img(path, name)}</div>")
+    parts.extend(_figures_section(figures))
     if not figures:
         parts.append("<p>No figures: no finished results.</p>")
     if res.missing:
@@ -262,8 +291,9 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
                      "not finished (or failed); run the suite again to complete them.</p><ul>")
         parts.extend(f"<li>{html.escape(m)}</li>" for m in res.missing[:200])
         parts.append("</ul>")
-    parts.append("<h2>Provenance</h2><pre>" + html.escape(
-        json.dumps({k: v for k, v in prov.items() if k != "directions"}, indent=1,
-                   default=str)) + "</pre>")
+    parts.append("<h2>Provenance</h2><details id='provenance'><summary>Suite settings, "
+                 "plugin versions, data sets and records (JSON)</summary><pre>" + html.escape(
+                     json.dumps({k: v for k, v in prov.items() if k != "directions"},
+                                indent=1, default=str)) + "</pre></details>")
     parts.append(f"<script>{_JS}</script></body></html>")
     return "\n".join(parts)
