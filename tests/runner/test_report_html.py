@@ -80,3 +80,86 @@ def test_partial_runs_say_so_at_the_top(tmp_path: Path) -> None:
     assert "<b>Partial results:</b> 2 stages" in html
     assert html.index("Partial results") < html.index("Metric leaderboard")
     assert "id='missing'" in html
+
+
+def _many_encoders(n: int = 12) -> Results:
+    """More encoders than a legend can hold, with the smoothness extras of Fig. 5."""
+    res = _results()
+    for i in range(n):
+        e = f"vae_{i}_lowkl" if i % 2 else f"enc_{i}"
+        res.encoder_rows.append({"task": "T-v0", "encoder": e, "latent_dim": 4,
+                                 "fit_time_s": 1, "family": "vae"})
+        extras = {"latent_distance": {"offsets": [1, 2, 5], "mean_distance": [0.1, 0.2 * i, i]},
+                  "histogram": {"bin_edges": [0.0, 0.5 + i, 2.0 + i], "counts": [3, 1 + i]},
+                  "quantiles": {"0.95": 1.0 + i}}
+        for m in ("ksg", "smoothness"):
+            res.metric_rows.append({"task": "T-v0", "encoder": e, "metric": m, "value": 0.1 * i,
+                                    "higher_is_better": True, "extras": extras})
+        res.rl_rows += [{"task": "T-v0", "encoder": e, "agent": "sac", "seed": s,
+                         "eval_return": 3.0 * i + s, "eval_success_rate": 0.0,
+                         "curve_steps": [0, 50], "curve_return": [0, i]} for s in range(2)]
+    return res
+
+
+def test_figures_have_no_legend_with_an_entry_per_encoder(tmp_path: Path, monkeypatch) -> None:
+    """23 encoders once made 23-line legends nobody could match to lines: legends now name
+    families (at most 8), encoders are named in panel titles, labels and hover titles."""
+    from repbench.report import figures
+
+    saved: list = []
+    real_save = figures.save_figure
+
+    def capture(fig, path, *args, **kwargs):
+        saved.append((Path(path).stem, [len(lg.get_texts()) for lg in (
+            *fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_legend()))]))
+        return real_save(fig, path, *args, **kwargs)
+
+    monkeypatch.setattr(figures, "save_figure", capture)
+    write_leaderboards(_many_encoders(), tmp_path)
+    stems = {stem for stem, _ in saved}
+    assert {"metric_vs_return", "learning_curves", "latent_distance", "smoothness_hist"} <= stems
+    for stem, legends in saved:
+        assert all(n <= 8 for n in legends), (stem, legends)
+
+
+def test_metric_vs_return_names_every_point_on_hover(tmp_path: Path) -> None:
+    """The central figure is inline SVG with one hover title per encoder × metric point."""
+    res = _many_encoders()
+    html = (write_leaderboards(res, tmp_path) / "index.html").read_text()
+    assert (tmp_path / "figures" / "metric_vs_return.png").is_file()
+    assert html.count("<svg ") == 1 and "<?xml" not in html
+    svg = html[html.index("<svg "):html.index("</svg>")]
+    titles = re.findall(r'<g id="mvr-\d+"[^>]*><title>([^<]*)</title>', svg)
+    points = {(r["encoder"], r["metric"]) for r in res.metric_rows}
+    assert len(titles) == len(points) == 4 * 2 + 12 * 2
+    for enc, metric in points:
+        name = enc.replace("<", "&lt;").replace(">", "&gt;").replace("'", "&#x27;")
+        assert any(t.startswith(f"{name} (") and f"{metric}=" in t for t in titles), enc
+    assert EVIL not in html
+
+
+def test_per_encoder_figures_are_closed_by_default(tmp_path: Path) -> None:
+    """Training curves and reconstructions of each encoder sit in a closed <details>."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    res = _results()
+    for kind in ("loss_curves", "reconstructions"):
+        for enc in ("pca", EVIL):
+            png = tmp_path / "store" / f"{kind}_{len(res.figures_from_store)}.png"
+            png.parent.mkdir(parents=True, exist_ok=True)
+            fig = plt.figure(figsize=(3, 2))
+            fig.savefig(png)
+            plt.close(fig)
+            res.figures_from_store[f"{kind} {enc}"] = png
+    html = (write_leaderboards(res, tmp_path / "out") / "index.html").read_text()
+    blocks = re.findall(r"<details[^>]*>(.*?)</details>", html, re.S)
+    per_encoder = [b for b in blocks if "data:image/png;base64," in b]
+    assert len(per_encoder) == 4
+    assert all(b.startswith("<summary>") and b.count("<img ") == 1 for b in per_encoder)
+    assert "<summary>&lt;script&gt;alert(&#x27;x&#x27;)&lt;/script&gt;</summary>" in html
+    assert not re.search(r"<details[^>]*\bopen\b", html)
+    assert html.count("data:image/png;base64,") > 4  # the suite's figures stay open, outside
+    assert (tmp_path / "out" / "figures" / "reconstructions_pca.png").is_file()
