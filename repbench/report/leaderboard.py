@@ -204,8 +204,9 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
     write_records(res.records, out_dir / "records")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)
-    for stale in (out_dir / "figures").glob("*.png"):  # figures of an earlier write
-        stale.unlink()
+    for stale in (out_dir / "figures").glob("*.*"):  # figures of an earlier write
+        if stale.suffix in (".png", ".svg"):
+            stale.unlink()
     figures = make_figures(res, met, out_dir / "figures")
     (out_dir / "index.html").write_text(render_html(res, enc, met, figures, claims),
                                         encoding="utf-8")

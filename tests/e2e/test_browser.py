@@ -10,6 +10,9 @@ import pytest
 from .conftest import SuiteRun
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+# The smoke page measured 10,981 px tall at 1400 px before the figures were reworked (one
+# 3626-px strip of scatter panels, per-encoder figures and provenance open) and 7,389 px after.
+MAX_HEIGHT_1400 = 9_000
 
 
 def test_leaderboard_in_headless_chromium(smoke_run: SuiteRun) -> None:
@@ -49,3 +52,37 @@ def test_leaderboard_in_headless_chromium(smoke_run: SuiteRun) -> None:
         page.screenshot(path=str(shot), full_page=True)
         browser.close()
     assert shot.stat().st_size > 10_000
+
+
+def test_leaderboard_reads_in_a_minute(smoke_run: SuiteRun) -> None:
+    """At 1400 px the page is short by default (per-encoder figures and provenance closed),
+    and the metric-vs-return figure names each point's encoder on hover."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    if not Path(CHROMIUM).exists():
+        pytest.skip("Debian chromium is not installed (apt-get install chromium)")
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync", "--no-first-run"])
+        page = browser.new_page(viewport={"width": 1400, "height": 900})
+        requests: list[str] = []
+        page.on("request", lambda r: requests.append(r.url))
+        page.goto((smoke_run.out / "index.html").as_uri())
+        assert all(u.startswith(("file:", "data:")) for u in requests), requests
+        height = page.evaluate("document.documentElement.scrollHeight")
+        assert height < MAX_HEIGHT_1400, height
+        details = page.eval_on_selector_all("details", "els => els.map(e => e.open)")
+        assert len(details) >= 3 and not any(details)  # per-encoder figures + provenance
+        assert page.eval_on_selector_all(".per-encoder details img", "els => els.length") >= 2
+        titles = page.eval_on_selector_all(
+            "svg g[id^='mvr-'] > title", "els => els.map(e => e.textContent)")
+        encoders = page.eval_on_selector_all(
+            "#encoders tbody tr", "rows => rows.map(r => r.cells[1].dataset.v)")
+        assert len(titles) >= len(encoders) > 0
+        assert all(any(t.startswith(e + " (") for t in titles) for e in encoders)
+        width = page.eval_on_selector(".svgfig svg", "e => e.getBoundingClientRect().width")
+        assert width > 900  # the panels are large enough to read
+        page.click(".per-encoder summary >> nth=0")
+        assert page.eval_on_selector(".per-encoder details", "e => e.open")
+        assert page.evaluate("document.documentElement.scrollHeight") > height
+        browser.close()
