@@ -1,7 +1,11 @@
-"""Shared end-to-end fixtures: one real smoke-suite run per test session."""
+"""Shared end-to-end fixtures: one real smoke-suite run per test session (shared by the xdist
+worker processes: the first to need it runs it under a file lock, the others read its result)."""
 
 from __future__ import annotations
 
+import fcntl
+import json
+import os
 import subprocess
 import sys
 import time
@@ -65,12 +69,25 @@ def run_repbench(*args: str, timeout: float = 900
 
 @pytest.fixture(scope="session")
 def smoke_run(tmp_path_factory: pytest.TempPathFactory) -> SuiteRun:
-    """`repbench run --suite smoke` into a fresh store, as a user would type it."""
-    base = tmp_path_factory.mktemp("smoke")
-    store, out = base / "store", base / "leaderboard"
-    proc, secs = run_repbench("run", "--suite", "smoke", "--store", str(store), "--out", str(out),
-                              "--workers", "2")
-    return SuiteRun(store, out, proc.stdout, proc.stderr, secs, proc.returncode)
+    """`repbench run --suite smoke` into a fresh store, as a user would type it; once per test
+    session, whichever xdist worker asks first."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the session's folder, above every worker's own
+    base, done = root / "smoke_shared", root / "smoke_shared.json"
+    with (root / "smoke_shared.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if done.is_file():
+            saved = json.loads(done.read_text())
+            return SuiteRun(Path(saved["store"]), Path(saved["out"]), saved["stdout"],
+                            saved["stderr"], saved["seconds"], saved["returncode"])
+        base.mkdir(exist_ok=True)
+        store, out = base / "store", base / "leaderboard"
+        proc, secs = run_repbench("run", "--suite", "smoke", "--store", str(store), "--out",
+                                  str(out), "--workers", "2")
+        run = SuiteRun(store, out, proc.stdout, proc.stderr, secs, proc.returncode)
+        done.write_text(json.dumps({**run.__dict__, "store": str(store), "out": str(out)}))
+        return run
 
 
 @pytest.fixture(scope="session")

@@ -9,6 +9,9 @@ import pytest
 
 from .conftest import SuiteRun
 
+# one xdist worker runs every test of the smoke_run fixture, so the smoke suite runs once
+pytestmark = pytest.mark.xdist_group("smoke_run")
+
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 # The smoke page measured 10,981 px tall at 1400 px before the figures were reworked (one
 # 3626-px strip of scatter panels, per-encoder figures and provenance open) and 7,389 px after.

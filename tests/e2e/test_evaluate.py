@@ -9,10 +9,14 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from tests.core.test_packaging import _PLUGIN_MODULE, _PLUGIN_PYPROJECT
 
 from .conftest import SuiteRun
+
+# one xdist worker runs every test of the smoke_run fixture, so the smoke suite runs once
+pytestmark = pytest.mark.xdist_group("smoke_run")
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import pandas as pd
+import pytest
 
 from repbench.pipeline.store import Store
 from repbench.pipeline.suite import load_suite
 
 from .conftest import SuiteRun, run_repbench
+
+# one xdist worker runs every test of the smoke_run fixture, so the smoke suite runs once
+pytestmark = pytest.mark.xdist_group("smoke_run")
 
 
 def test_smoke_suite_runs_end_to_end(smoke_run: SuiteRun) -> None:
