@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -18,21 +21,30 @@ CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 MAX_HEIGHT_1400 = 9_000
 
 
+
+@contextlib.contextmanager
+def _page(sync_api: Any, path: Path, width: int) -> Iterator[tuple[Any, Any]]:
+    """Debian's Chromium, headless, on ``path`` at ``width`` px; asserts that the page loads
+    nothing from the network."""
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync", "--no-first-run"])
+        page = browser.new_page(viewport={"width": width, "height": 900})
+        requests: list[str] = []
+        page.on("request", lambda r: requests.append(r.url))
+        page.goto(path.as_uri())
+        assert all(u.startswith(("file:", "data:")) for u in requests), requests
+        yield browser, page
+
+
 def test_leaderboard_in_headless_chromium(smoke_run: SuiteRun) -> None:
     sync_api = pytest.importorskip("playwright.sync_api")
     if not Path(CHROMIUM).exists():
         pytest.skip("Debian chromium is not installed (apt-get install chromium)")
     page_path = smoke_run.out / "index.html"
     assert page_path.is_file(), smoke_run.stdout[-2000:]
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync", "--no-first-run"])
-        page = browser.new_page(viewport={"width": 1280, "height": 900})
-        requests: list[str] = []
-        page.on("request", lambda r: requests.append(r.url))
-        page.goto(page_path.as_uri())
-        assert all(u.startswith(("file:", "data:")) for u in requests), requests
+    with _page(sync_api, page_path, width=1280) as (browser, page):
         images = page.eval_on_selector_all("img", "els => els.map(e => e.naturalWidth)")
         assert len(images) >= 4 and all(w > 100 for w in images)
 
@@ -63,15 +75,7 @@ def test_leaderboard_reads_in_a_minute(smoke_run: SuiteRun) -> None:
     sync_api = pytest.importorskip("playwright.sync_api")
     if not Path(CHROMIUM).exists():
         pytest.skip("Debian chromium is not installed (apt-get install chromium)")
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync", "--no-first-run"])
-        page = browser.new_page(viewport={"width": 1400, "height": 900})
-        requests: list[str] = []
-        page.on("request", lambda r: requests.append(r.url))
-        page.goto((smoke_run.out / "index.html").as_uri())
-        assert all(u.startswith(("file:", "data:")) for u in requests), requests
+    with _page(sync_api, smoke_run.out / "index.html", width=1400) as (browser, page):
         height = page.evaluate("document.documentElement.scrollHeight")
         assert height < MAX_HEIGHT_1400, height
         details = page.eval_on_selector_all("details", "els => els.map(e => e.open)")
