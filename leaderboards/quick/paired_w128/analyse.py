@@ -1,6 +1,6 @@
 """Issue 20's paired same-answer check, the statistics fixed in PREREGISTRATION.md.
 
-Usage: ``python analyse.py STORE_OR_RECORDS [--out paired.csv]``. It reads the RL and
+Usage: ``python analyse.py STORE_OR_RECORDS [MORE ...] [--out paired.csv]``. It reads the RL and
 privileged-agent records of both paths (told apart by the agent's ``backend`` and
 ``hidden_sizes``), prints the table and the verdict of each pre-registered criterion, and writes
 one row per encoder to ``--out``. Written before the first RL record of either path existed.
@@ -36,11 +36,11 @@ def path_of(record: dict) -> str | None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("source", type=Path)
+    parser.add_argument("sources", type=Path, nargs="+")
     parser.add_argument("--out", type=Path, default=Path(__file__).with_name("paired.csv"))
     args = parser.parse_args()
 
-    records = load_records(args.source, kinds=["rl", "full_state_agent"])
+    records = load_records(*args.sources, kinds=["rl", "full_state_agent"])
     returns: dict[tuple[str, str], dict[int, float]] = defaultdict(dict)
     cpu: dict[str, list[float]] = defaultdict(list)
     privileged = []
