@@ -43,8 +43,6 @@ def family_style(family: str) -> tuple[str, str]:
 
 def encoder_families(res: Any) -> dict[str, str]:
     """encoder → display family for every encoder of ``res`` (a :class:`Results`)."""
-    from repbench.report.leaderboard import _families, _family
-
     plugin = _families(res)
     for r in res.rl_rows:
         plugin.setdefault(r["encoder"], _family(r["encoder"]))
@@ -66,3 +64,22 @@ def family_legend(fig: Any, families: Iterable[str], y: float = 1.0) -> Any:
     return fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, y),
                       ncol=len(handles), fontsize=9, frameon=False, handletextpad=0.3,
                       columnspacing=1.4)
+
+
+def _family(encoder: str) -> str:
+    """An encoder's family from its class (records written before families were stored)."""
+    from repbench.registry import encoders
+
+    try:
+        return str(getattr(encoders.get(encoder), "family", "learned"))
+    except Exception:  # unknown or unimportable plugin: count it as learned
+        return "learned"
+
+
+def _families(res: Any) -> dict[str, str]:
+    """encoder → family for every encoder in the records."""
+    families = {r["encoder"]: r.get("family") or _family(r["encoder"])
+                for r in res.encoder_rows}
+    for r in res.metric_rows:
+        families.setdefault(r["encoder"], _family(r["encoder"]))
+    return families

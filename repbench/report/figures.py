@@ -443,7 +443,7 @@ def loss_curves(history: list[Mapping[str, Any]], path: str | os.PathLike[str],
 
 #: kind of a per-encoder figure from the stage store → its heading on the page; the page lists
 #: them as ``"<heading>: <encoder>"`` (see :func:`per_encoder_figures`).
-STORE_FIGURE_HEADINGS = {"loss_curves": "Training curves (train and held-out loss per epoch)",
+STORE_FIGURE_HEADINGS = {"loss_curves": "Training curves",
                          "reconstructions": "Reconstructions (appendix figure)"}
 
 

@@ -27,6 +27,7 @@ import pandas as pd
 
 from repbench.analysis.correlation import METHODS, correlate
 from repbench.analysis.results import Results, build_results, write_records
+from repbench.report.families import _families
 from repbench.rl.aggregate import aggregate_seeds
 
 __all__ = ["Results", "build_results", "encoder_table", "metric_table", "write_leaderboards"]
@@ -80,25 +81,6 @@ def encoder_table(res: Results) -> pd.DataFrame:
     if sort_col:
         df = df.sort_values(["task", sort_col], ascending=[True, False], na_position="last")
     return df.reset_index(drop=True)
-
-
-def _family(encoder: str) -> str:
-    """An encoder's family from its class (records written before families were stored)."""
-    from repbench.registry import encoders
-
-    try:
-        return str(getattr(encoders.get(encoder), "family", "learned"))
-    except Exception:  # unknown or unimportable plugin: count it as learned
-        return "learned"
-
-
-def _families(res: Results) -> dict[str, str]:
-    """encoder → family for every encoder in the records."""
-    families = {r["encoder"]: r.get("family") or _family(r["encoder"])
-                for r in res.encoder_rows}
-    for r in res.metric_rows:
-        families.setdefault(r["encoder"], _family(r["encoder"]))
-    return families
 
 
 def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
