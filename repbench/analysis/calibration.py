@@ -36,6 +36,9 @@ import numpy as np
 MIN_REFERENCE = 4
 #: The fewest encoders a fold's line is fitted on (a held-out fit of MIN_REFERENCE - 1).
 MIN_FIT = MIN_REFERENCE - 1
+#: Families are the folds only when there are at least this many (one held out, two left so
+#: that the metric choice inside the fold is not made on one family); else encoders are.
+MIN_FAMILIES = 3
 
 
 @dataclass(frozen=True)
@@ -174,7 +177,8 @@ def predict_return(reference_metrics: Mapping[str, Mapping[str, float]],
         reference_returns: encoder → mean evaluation return over seeds.
         new_metrics: metric → value of the new encoder.
         families: encoder → family of the reference encoders (the folds of the interval);
-            each encoder is its own family when omitted.
+            each encoder is its own family when omitted or when the reference has fewer than
+            :data:`MIN_FAMILIES` families.
         method: how to fit and how wide the interval is (:data:`CANDIDATES`, :data:`LEGACY`).
 
     Returns:
@@ -194,6 +198,8 @@ def predict_return(reference_metrics: Mapping[str, Mapping[str, float]],
     if f is None:
         return None
     groups = [(families or {}).get(e, e) for e in encs]
+    if len(set(groups)) < MIN_FAMILIES:  # too few families to hold one out: encoders as folds
+        groups = encs
     errors = held_out_errors(x, y, groups, method)
     half = half_width(errors, method)
     if not np.isfinite(half) and not math.isinf(half):
@@ -226,17 +232,39 @@ def reference_table(metric_rows: Iterable[Mapping[str, Any]],
 def predict_from_rows(metric_rows: Iterable[Mapping[str, Any]],
                       rl_rows: Iterable[Mapping[str, Any]], encoder: str,
                       families: Mapping[str, str] | None = None,
-                      method: Method = DEFAULT_METHOD) -> list[dict[str, Any]]:
+                      method: Method | None = None) -> list[dict[str, Any]]:
     """:func:`predict_return` for ``encoder`` for every task × agent in the reference rows
     (:class:`repbench.analysis.results.Results` rows; ``encoder``'s own RL rows, if any, are
-    ignored)."""
+    ignored).
+
+    With ``families`` and no ``method``, each task × agent uses the method whose coverage
+    holds out of sample on the reference encoders
+    (:func:`repbench.analysis.robustness.validated_method`), and the prediction carries that
+    measurement: ``measured_coverage`` with ``coverage_ci``, ``median_half_width`` and
+    ``method_warning``.
+    """
+    from repbench.analysis.robustness import validated_method
+
     metric_rows, rl_rows = list(metric_rows), list(rl_rows)
     out = []
     for task, agent in sorted({(r["task"], r["agent"]) for r in rl_rows}):
         values, runs = reference_table(metric_rows, rl_rows, task, agent, exclude=encoder)
         new = values.pop(encoder, {})
+        chosen, measured, warning, width = method or DEFAULT_METHOD, None, None, float("nan")
+        if method is None and families:
+            ref_rows = [r for r in rl_rows if r["encoder"] != encoder]
+            chosen, measured, warning, width = validated_method(
+                [r for r in metric_rows if r["encoder"] != encoder], ref_rows, families,
+                task, agent)
         pred = predict_return(values, {e: float(np.mean(v)) for e, v in runs.items()}, new,
-                              families, method)
-        if pred is not None:
-            out.append({"task": task, "agent": agent, "encoder": encoder, **pred})
+                              families, chosen)
+        if pred is None:
+            continue
+        if measured is not None:
+            pred.update(measured_coverage=measured.value,
+                        coverage_ci=(measured.ci_low, measured.ci_high),
+                        median_half_width=width)
+        pred["method_warning"] = warning
+        out.append({"task": task, "agent": agent, "encoder": encoder, **pred})
     return out
+

@@ -64,6 +64,10 @@ class Results:
     #: (task, agent, metric) → encoder → leave-one-encoder-out predicted return (metric
     #: leaderboard, :func:`repbench.report.leaderboard.metric_ranking`)
     loo_predictions: dict[tuple[str, str, str], dict[str, float]] = field(default_factory=dict)
+    #: the "Does the answer hold?" checks (:mod:`repbench.analysis.robustness`): ``checks``, the
+    #: rows of ``robustness.csv``; ``heldout``, every encoder predicted leave-one-family-out
+    #: per task × agent × calibration method
+    robustness: dict[str, Any] = field(default_factory=dict)
 
 
 # -- reading --------------------------------------------------------------------------------------

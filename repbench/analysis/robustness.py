@@ -44,6 +44,7 @@ from repbench.analysis.calibration import (
     CANDIDATES,
     DEFAULT_METHOD,
     LEGACY,
+    MIN_FAMILIES,
     MIN_FIT,
     MIN_REFERENCE,
     Method,
@@ -141,13 +142,16 @@ def calibration_checks(values: Mapping[str, Mapping[str, float]],
                   and all(np.isfinite(values[e].get(m, np.nan)) for m in metrics))
     # keep the metrics every encoder has, so no encoder is dropped for one missing metric
     metrics = [m for m in metrics if all(np.isfinite(values[e].get(m, np.nan)) for e in encs)]
-    if len(encs) < MIN_REFERENCE + 1 or not metrics:
+    if len(encs) < MIN_REFERENCE + 1 or not metrics:  # a nested fold needs 3 + 1 + 1
         return [], pd.DataFrame()
     y = np.array([float(np.mean(returns[e])) for e in encs])
     se = np.array([float(np.std(returns[e], ddof=1) / math.sqrt(len(returns[e])))
                    if len(returns[e]) > 1 else np.nan for e in encs])
     x = {m: np.array([values[e][m] for e in encs], float) for m in metrics}
     fam = [families.get(e, e) for e in encs]
+    unit = "families"
+    if len(set(fam)) < MIN_FAMILIES:  # as calibration.predict_return does: encoders as folds
+        fam, unit = list(encs), "encoders (too few families to hold one out)"
     checks, frames = [], []
     where = " ".join(s for s in (task, agent) if s)
     for method in methods:
@@ -173,7 +177,7 @@ def calibration_checks(values: Mapping[str, Mapping[str, float]],
         rho = (float(stats.spearmanr(lp["predicted"], lp["actual"]).statistic)
                if len(lp) >= 3 and lp["predicted"].nunique() > 1 else float("nan"))
         detail = (f"{method.description}; nominal {nominal:.0%}; {covered}/{n} covered over "
-                  f"{len(set(fam))} held-out families; median half-width ±{width:.0f}; "
+                  f"{len(set(fam))} held-out {unit}; median half-width ±{width:.0f}; "
                   f"held-out RMSE {rmse:.0f} vs median SE of a mean {np.nanmedian(se):.0f}; "
                   f"Spearman predicted vs actual within the learned encoders {rho:.2f}")
         checks.append(Check(f"out-of-sample coverage ({method.name}){' ' + where if where else ''}",
@@ -366,13 +370,22 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
 
 def validated_method(metric_rows: Sequence[Mapping[str, Any]],
                      rl_rows: Sequence[Mapping[str, Any]], families: Mapping[str, str],
-                     task: str, agent: str) -> tuple[Method, Check | None, str | None]:
+                     task: str, agent: str) -> tuple[Method, Check | None, str | None, float]:
     """The calibration method ``evaluate`` uses for ``task`` × ``agent``
-    (:func:`choose_method` on the reference rows), its coverage check and a warning."""
+    (:func:`choose_method` on the reference rows): ``(method, its coverage check, a warning or
+    None, the median held-out half-width)``."""
     from repbench.analysis.calibration import reference_table
 
     values, runs = reference_table(metric_rows, rl_rows, task, agent)
-    checks, _ = calibration_checks(values, runs, families, _learned(families), methods=CANDIDATES)
+    checks, pred = calibration_checks(values, runs, families, _learned(families),
+                                      methods=CANDIDATES)
+    if not checks:
+        return DEFAULT_METHOD, None, (
+            f"the interval's coverage was not measured out of sample: the reference has "
+            f"{len(runs)} encoders with RL results (at least {MIN_REFERENCE + 1} needed)"), \
+            float("nan")
     method, warning = choose_method(checks)
     mine = next((c for c in checks if f"({method.name})" in c.check), None)
-    return method, mine, warning
+    width = (float(pred.loc[pred["method"] == method.name, "half_width"].median())
+             if not pred.empty else float("nan"))
+    return method, mine, warning, width

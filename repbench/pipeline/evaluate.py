@@ -130,7 +130,10 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
                                    "reference_records": str(ref_dir),
                                    "n_reference_records": len(reference_records)}
     if metrics_only:
-        res.predictions = predict_from_rows(res.metric_rows, res.rl_rows, encoder)
+        from repbench.report.families import encoder_families
+
+        res.predictions = predict_from_rows(res.metric_rows, res.rl_rows, encoder,
+                                            families=encoder_families(res))
         res.provenance["evaluated"]["predictions"] = res.predictions
     write_leaderboards(res, out_dir)
     for w in warnings:
@@ -139,6 +142,14 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
         print(f"predicted {p['agent']} return of {encoder} on {p['task']}: "
               f"{p['predicted_return']:.4g} [{p['ci_low']:.4g}, {p['ci_high']:.4g}] from "
               f"{p['predictor']} ({p['n_reference']} reference encoders)", flush=True)
+        if p.get("measured_coverage") is not None:
+            lo, hi = p["coverage_ci"]
+            print(f"  interval: {p['method']}; measured out of sample (one family of reference "
+                  f"encoders held out at a time): coverage {p['measured_coverage']:.0%} "
+                  f"[{lo:.0%}, {hi:.0%}], median half-width ±{p['median_half_width']:.0f}",
+                  flush=True)
+        if p.get("method_warning"):
+            print(f"warning: {p['method_warning']}", flush=True)
     if report.failed:
         for i, err in report.failed.items():
             print(f"  FAILED {report.labels[i]}: {err}", flush=True)

@@ -6,8 +6,9 @@
 * ``latent_distance.png`` — E‖z_n − z_{n+T}‖ against the offset T (Fig. 5a);
 * ``smoothness_hist.png`` — ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖ histograms (Fig. 5b);
 * ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a);
-* ``predicted_vs_actual.png`` — each encoder's return predicted leave-one-encoder-out by the
-  metric with the lowest LOO error, against its actual mean return (one panel per agent).
+* ``predicted_vs_actual.png`` — each encoder's return predicted with its whole family held out
+  (the calibration ``evaluate`` uses), with the stated interval, against its actual mean return
+  (one panel per task × agent; a black edge marks an encoder outside its interval).
 """
 
 from __future__ import annotations
@@ -448,39 +449,51 @@ STORE_FIGURE_HEADINGS = {"loss_curves": "Training curves",
 
 
 def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
-    """Leave-one-encoder-out predicted return (best metric by LOO error) vs actual mean return,
-    one panel per task × agent, with the seeds' 95 % t-interval and the diagonal."""
-    preds = getattr(res, "loo_predictions", None) or {}
-    if ranking is None or ranking.empty or "loo_rmse" not in ranking or not preds:
+    """Each encoder's return predicted with its whole family held out (the calibration method
+    ``evaluate`` uses, :func:`repbench.analysis.robustness.choose_method`) vs its actual mean
+    return: horizontal bars the stated interval, vertical bars the seeds' 95 % t-interval, one
+    panel per task × agent, the diagonal dashed; the title gives the measured coverage."""
+    from repbench.analysis.robustness import choose_method
+
+    rob = getattr(res, "robustness", None) or {}
+    heldout, checks = rob.get("heldout"), rob.get("checks")
+    if heldout is None or heldout.empty or checks is None or checks.empty:
         return None
-    best = (ranking[np.isfinite(ranking["loo_rmse"])].sort_values("loo_rmse")
-            .groupby(["task", "agent"], sort=True).head(1))
-    if best.empty:
-        return None
-    fig, axes = plt.subplots(1, len(best), squeeze=False, figsize=(4.2 * len(best), 3.8))
-    for ax, (_, b) in zip(axes[0], best.iterrows(), strict=True):
-        pred = preds.get((b["task"], b["agent"], b["metric"]), {})
+    panels = sorted({(t, a) for t, a in zip(heldout["task"], heldout["agent"], strict=True)})
+    families = encoder_families(res)
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(4.6 * len(panels), 4.2))
+    for ax, (task, agent) in zip(axes[0], panels, strict=True):
+        mine = [c for c in checks.itertuples(index=False) if c.check.endswith(f"{task} {agent}")]
+        method, _ = choose_method(mine)  # type: ignore[arg-type]
+        rows = heldout[(heldout["task"] == task) & (heldout["agent"] == agent)
+                       & (heldout["method"] == method.name) & heldout["predicted"].notna()]
         rets: dict[str, list[float]] = {}
         for r in res.rl_rows:
-            if r["task"] == b["task"] and r["agent"] == b["agent"]:
+            if r["task"] == task and r["agent"] == agent:
                 rets.setdefault(r["encoder"], []).append(r["eval_return"])
-        colors = _colors(list(pred))
-        lims = []
-        for enc, yhat in pred.items():
-            if enc not in rets:
-                continue
-            m, lo, hi = mean_ci(rets[enc])
+        lims: list[float] = []
+        for r in rows.itertuples(index=False):
+            m, lo, hi = mean_ci(rets.get(r.encoder, [r.actual]))
+            color, marker = family_style(families.get(r.encoder, ""))
             yerr = [[m - lo], [hi - m]] if np.isfinite(lo) else None
-            ax.errorbar(yhat, m, yerr=yerr, fmt="o", color=colors[enc], ms=5, capsize=2)
-            ax.annotate(enc, (yhat, m), fontsize=6, xytext=(3, 3), textcoords="offset points")
-            lims += [yhat, m]
+            xerr = [[r.half_width], [r.half_width]] if np.isfinite(r.half_width) else None
+            ax.errorbar(r.predicted, m, xerr=xerr, yerr=yerr, fmt="none", ecolor=color,
+                        alpha=0.35, elinewidth=0.8)
+            ax.plot([r.predicted], [m], ls="none", marker=marker, color=color, ms=5.5,
+                    mec="white" if r.covered else "black", mew=0.5 if r.covered else 1.2,
+                    zorder=3)
+            lims += [r.predicted, m]
         if lims:
             lo_, hi_ = min(lims), max(lims)
             ax.plot([lo_, hi_], [lo_, hi_], color="#999", lw=0.8, ls="--")
-        ax.set_xlabel(f"predicted from {b['metric']} (leave one encoder out)")
-        ax.set_ylabel(f"{b['agent']} return (mean over seeds)")
-        ax.set_title(f"{b['task']} {b['agent']}: LOO RMSE {b['loo_rmse']:.3g} "
-                     f"(ratio {b['loo_rmse_ratio']:.2f})", fontsize=9)
+        check = next((c for c in mine if f"({method.name})" in c.check), None)
+        cov = (f"coverage {check.value:.0%} [{check.ci_low:.0%}, {check.ci_high:.0%}] "
+               f"(nominal {method.coverage:.0%}), median ±{rows['half_width'].median():.0f}"
+               if check is not None and method.coverage is not None else "")
+        ax.set_xlabel(f"predicted with its family held out ({method.name})", fontsize=8)
+        ax.set_ylabel(f"{agent} return (mean over seeds)")
+        ax.set_title(f"{task} {agent}: {cov}", fontsize=8)
+    family_legend(fig, set(families.values()), y=1.0)
     fig.tight_layout()
     return save_figure(fig, path)
 
@@ -495,7 +508,7 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
         return predicted_vs_actual(r, p, metrics_df)
 
     makers = {
-        "Predicted vs actual return (best metric, leave one encoder out)": (
+        "Predicted vs actual return (leave one family out)": (
             predicted, "predicted_vs_actual"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),

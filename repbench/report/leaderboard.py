@@ -13,6 +13,10 @@ them by identity, :mod:`repbench.analysis.results`); nothing here reads a plan o
   metric predicts RL performance".
 * ``claims.csv`` — the paper's claims checked against these records, each with its statistic,
   interval and verdict (:mod:`repbench.analysis.claims`).
+* ``robustness.csv`` — does the answer hold: the out-of-sample coverage of the calibrated
+  return prediction per method, and, where the records have them, SAC vs DDPG and 10k vs
+  longer-budget agreement, each with its interval and a verdict fixed before the data
+  (:mod:`repbench.analysis.robustness`).
 * ``index.html`` — one self-contained page (see :mod:`repbench.report.report_html`).
 """
 
@@ -166,8 +170,22 @@ def paper_claims(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
 
 
+def robustness_checks(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
+    """The "Does the answer hold?" checks (:func:`repbench.analysis.robustness.check_results`)
+    as ``robustness.csv``'s table; the held-out predictions behind them go to
+    ``res.robustness["heldout"]`` for the predicted-vs-actual figure."""
+    from repbench.analysis.robustness import check_results, robustness_table
+    from repbench.report.families import encoder_families
+
+    checks, heldout = check_results(res.metric_rows, res.rl_rows, encoder_families(res), ranking)
+    table = robustness_table(checks)
+    res.robustness = {"checks": table, "heldout": heldout}
+    return table
+
+
 def write_leaderboards(res: Results, out_dir: Path) -> Path:
-    """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``provenance.json``, figures,
+    """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``robustness.csv``,
+    ``provenance.json``, figures,
     ``index.html`` and the records they were computed from (``records/``)."""
     from repbench.report.figures import make_figures
     from repbench.report.report_html import render_html
@@ -180,9 +198,11 @@ def write_leaderboards(res: Results, out_dir: Path) -> Path:
         met = ranking.merge(met, on=["task", "agent", "metric"], how="left")
         enc = add_loo_predicted_return(enc, ranking, res.loo_predictions)
     claims = paper_claims(res, ranking)
+    robustness = robustness_checks(res, ranking)
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     claims.to_csv(out_dir / "claims.csv", index=False, float_format="%.6g")
+    robustness.to_csv(out_dir / "robustness.csv", index=False, float_format="%.6g")
     write_records(res.records, out_dir / "records")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)

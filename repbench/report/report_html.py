@@ -10,6 +10,7 @@ import base64
 import html
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -178,6 +179,15 @@ def _encoder_notes(res: Any) -> list[str]:
                 f"{_fmt(p['predicted_return'])} [{_fmt(p['ci_low'])}, {_fmt(p['ci_high'])}]"
                 f" from {p['predictor']} ({p['method']}, {p['n_reference']} reference "
                 "encoders); no RL was run for it.")
+            if p.get("measured_coverage") is not None:
+                lo, hi = p["coverage_ci"]
+                text += html.escape(
+                    f" Measured out of sample on the reference encoders (one family held out "
+                    f"at a time), intervals of this method covered {p['measured_coverage']:.0%}"
+                    f" [{lo:.0%}, {hi:.0%}] of actual returns, median half-width "
+                    f"±{_fmt(p['median_half_width'])}.")
+            if p.get("method_warning"):
+                text += html.escape(f" ⚠ {p['method_warning']}.")
         notes.append(f"<p class='note' id='evaluated'>{text}</p>")
     if getattr(res, "stale", None):
         notes.append("<p class='note'>Rows in grey italics are <b>stale</b>: computed by an "
@@ -186,37 +196,65 @@ def _encoder_notes(res: Any) -> list[str]:
     return notes
 
 
+_VERDICT_COLORS = {"reproduced": "#dff5e1", "not reproduced": "#fbe0e0",
+                   "inconclusive": "#f3f0dc", "significant": "#dff5e1",
+                   "not significant": "#f3f0dc", "holds": "#dff5e1",
+                   "does not hold": "#fbe0e0", "holds, too wide": "#f3f0dc"}
+_WIDE = "class='txt' style='white-space:normal;min-width:{}px'"
+_TXT = "class='txt'"
+
+
+def _verdict_table(df: pd.DataFrame, table_id: str, text_cols: Sequence[tuple[str, int]]
+                   ) -> str:
+    """A table of checks: the text columns (name, min width in px; 0 = no wrapping), then
+    value [95% CI], verdict (coloured) and detail."""
+    head = [c for c, _ in text_cols] + ["value [95% CI]", "verdict", "detail"]
+    rows = [f"<table id='{table_id}'><thead><tr>"
+            + "".join(f"<th class='txt'>{h}</th>" for h in head) + "</tr></thead><tbody>"]
+    for r in df.to_dict("records"):
+        cells = "".join(
+            f"<td {_WIDE.format(w) if w else _TXT}>"
+            f"{html.escape(str(r[c]))}</td>" for c, w in text_cols)
+        rows.append(
+            f"<tr>{cells}<td>{_fmt(r['value'])} <span class='ci'>[{_fmt(r['ci_low'])}, "
+            f"{_fmt(r['ci_high'])}]</span></td><td class='txt' style='background:"
+            f"{_VERDICT_COLORS.get(str(r['verdict']), '')}'><b>{html.escape(str(r['verdict']))}"
+            f"</b></td><td {_WIDE.format(260)}>{html.escape(str(r['detail']))}</td></tr>")
+    rows.append("</tbody></table>")
+    return "".join(rows)
+
+
 def _claims_section(claims: pd.DataFrame | None) -> list[str]:
     """The paper's claims with their numbers and verdicts (:mod:`repbench.analysis.claims`)."""
     if claims is None or claims.empty:
         return []
-    out = ["<h2>Paper claims, checked</h2><p class='note'>Each claim of the paper as a signed "
-           "statistic, with its 95% interval and a verdict fixed before the data: "
-           "<b>reproduced</b> = interval excludes 0 on the claimed side (correlations: also "
-           "Holm-adjusted p &lt; 0.05); <b>not reproduced</b> = estimate on the other side; "
-           "<b>inconclusive</b> = right side, interval includes 0. Correlations are over the "
-           "learned encoders, as in the paper. The last rows answer the question the paper left "
-           "open: which metric predicts return best.</p>",
-           "<table id='claims'><thead><tr>" + "".join(
-               f"<th class='txt'>{h}</th>" for h in ("agent", "claim", "source", "statistic",
-                                                     "value [95% CI]", "verdict", "detail"))
-           + "</tr></thead><tbody>"]
-    colors = {"reproduced": "#dff5e1", "not reproduced": "#fbe0e0", "inconclusive": "#f3f0dc",
-              "significant": "#dff5e1", "not significant": "#f3f0dc"}
-    for r in claims.itertuples(index=False):
-        out.append(
-            f"<tr><td class='txt'>{html.escape(str(r.agent))}</td>"
-            f"<td class='txt' style='white-space:normal;min-width:220px'>"
-            f"{html.escape(str(r.claim))}</td><td class='txt'>{html.escape(str(r.source))}</td>"
-            f"<td class='txt' style='white-space:normal;min-width:200px'>"
-            f"{html.escape(str(r.statistic))}</td>"
-            f"<td>{_fmt(r.value)} <span class='ci'>[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
-            f"</span></td><td class='txt' style='background:{colors.get(str(r.verdict), '')}'>"
-            f"<b>{html.escape(str(r.verdict))}</b></td>"
-            f"<td class='txt' style='white-space:normal;min-width:260px'>"
-            f"{html.escape(str(r.detail))}</td></tr>")
-    out.append("</tbody></table>")
-    return out
+    return ["<h2>Paper claims, checked</h2><p class='note'>Each claim of the paper as a signed "
+            "statistic, with its 95% interval and a verdict fixed before the data: "
+            "<b>reproduced</b> = interval excludes 0 on the claimed side (correlations: also "
+            "Holm-adjusted p &lt; 0.05); <b>not reproduced</b> = estimate on the other side; "
+            "<b>inconclusive</b> = right side, interval includes 0. Correlations are over the "
+            "learned encoders, as in the paper. The last rows answer the question the paper "
+            "left open: which metric predicts return best.</p>",
+            _verdict_table(claims, "claims", [("agent", 0), ("claim", 220), ("source", 0),
+                                              ("statistic", 200)])]
+
+
+def _robustness_section(checks: pd.DataFrame | None) -> list[str]:
+    """Does the answer hold? (:mod:`repbench.analysis.robustness`)."""
+    if checks is None or checks.empty:
+        return []
+    return ["<h2 id='robustness'>Does the answer hold?</h2><p class='note'>Checks with "
+            "verdict rules fixed in code before the data. <b>Out-of-sample coverage</b>: each "
+            "family of encoders (paper VAEs, low-KL twins, ablations, contrastive, supervised, "
+            "baselines) is predicted from its metrics by a line fitted on the other families "
+            "(metric chosen inside the fold), with the interval those families alone give; "
+            "coverage = share of actual mean returns inside (Clopper–Pearson 95% interval). "
+            "<b>does not hold</b> = coverage significantly below nominal (exact binomial, "
+            "p &lt; 0.05); <b>holds, too wide</b> = covers, but the median interval is wider "
+            "than ±150. Agreement rows (SAC vs DDPG, 10k vs a longer budget), where run: "
+            "<b>holds</b> if the bootstrap interval (encoders and seeds resampled) lies above "
+            "the threshold, <b>does not hold</b> if below.</p>",
+            _verdict_table(checks, "robustness", [("check", 240), ("statistic", 180)])]
 
 
 def _partial_banner(res: Any) -> list[str]:
@@ -267,6 +305,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
         else "<p>No correlations yet.</p>",
         *_claims_section(claims),
+        *_robustness_section((getattr(res, "robustness", None) or {}).get("checks")),
         "<h2>Which metric predicts RL performance?</h2>",
         "<p class='note'>Correlation across encoders between each metric and the final "
         "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "

@@ -86,7 +86,10 @@ def test_a_user_suite_can_be_a_few_lines(tmp_path: Path) -> None:
     quick = load_suite("quick")
     assert s.name == "few" and s.dataset.random_episodes == 2
     assert s.dataset.random_steps == quick.dataset.random_steps  # documented defaults
-    assert s.rl == quick.rl and s.encoder_training == quick.encoder_training
+    # quick pins its privileged agent to SB3 (its SAC runs on SBX); the rest are the defaults
+    assert quick.rl.privileged_params == {"backend": "sb3"} and s.rl.privileged_params == {}
+    assert s.rl.model_copy(update={"privileged_params": {"backend": "sb3"}}) == quick.rl
+    assert s.encoder_training == quick.encoder_training
     assert s.seeds == quick.seeds
     build_plan(s)
 

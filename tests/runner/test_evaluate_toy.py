@@ -69,6 +69,8 @@ def test_evaluate_metrics_only_against_reference_records(tmp_path: Path, half_st
     assert enc["ksg"].notna().all() and pd.isna(enc.loc["half_state", "sac_return"])
     pred = res.predictions[0]
     assert pred["agent"] == "sac" and pred["n_reference"] == 4
+    # 4 reference encoders are too few for a nested held-out interval: said, not hidden
+    assert "coverage was not measured out of sample" in pred["method_warning"]
     assert pred["ci_low"] <= pred["predicted_return"] <= pred["ci_high"]
     assert enc.loc["half_state", "sac_predicted_return"] == pytest.approx(
         pred["predicted_return"], rel=1e-5)

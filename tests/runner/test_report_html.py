@@ -13,7 +13,7 @@ EVIL = "<script>alert('x')</script>"
 
 def _results() -> Results:
     res = Results(load_suite("smoke"))
-    encs = ["oracle", "random", "pca", EVIL]
+    encs = ["oracle", "random", "pca", "vae", EVIL]
     for i, e in enumerate(encs):
         res.encoder_rows.append({"task": "T-v0", "encoder": e, "latent_dim": 4, "fit_time_s": 1})
         for m, hib in (("ksg", True), ("regression", False)):
@@ -131,7 +131,7 @@ def test_metric_vs_return_names_every_point_on_hover(tmp_path: Path) -> None:
     svg = html[html.index("<svg "):html.index("</svg>")]
     titles = re.findall(r'<g id="mvr-\d+"[^>]*><title>([^<]*)</title>', svg)
     points = {(r["encoder"], r["metric"]) for r in res.metric_rows}
-    assert len(titles) == len(points) == 4 * 2 + 12 * 2
+    assert len(titles) == len(points) == 5 * 2 + 12 * 2
     for enc, metric in points:
         name = enc.replace("<", "&lt;").replace(">", "&gt;").replace("'", "&#x27;")
         assert any(t.startswith(f"{name} (") and f"{metric}=" in t for t in titles), enc
