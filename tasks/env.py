@@ -94,6 +94,8 @@ class WristTaskEnv(gym.Env):
 
             self._flip_default = macros.IMAGE_CONVENTION != "opencv"
         self._filter = LowPass(cfg.ft_cutoff_hz, 1.0 / cfg.physics_dt)
+        #: The controller's largest position step per control step (its ``output_max``, m).
+        self._osc_position_max = cfg.action_scale
         self._arm_q = self.sim.arm_qpos_idx
         self._arm_v = self.sim.arm_qvel_idx
         self._is_tool = np.zeros(self.model.ngeom, bool)  # set by subclasses (in_contact)
@@ -201,15 +203,14 @@ class WristTaskEnv(gym.Env):
         a = np.clip(np.asarray(action, dtype=np.float64).reshape(3), -1.0, 1.0)
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action must be finite, got {action!r}")
-        scale = self.config.action_scale
         tip = self.tip_position()
-        target = np.clip(tip + a * scale, *self.tip_bounds)
+        target = self._position_goal(tip, a)
         rot = self.data.site_xmat[self.sim.eef_site_id].reshape(3, 3)
         quat = np.empty(4)
         mujoco.mju_mat2Quat(quat, (self.target_rot @ rot.T).ravel())
         rotvec = np.empty(3)
         mujoco.mju_quat2Vel(rotvec, quat, 1.0)
-        command = np.concatenate(((target - tip) / scale,
+        command = np.concatenate(((target - tip) / self._osc_position_max,
                                   np.clip(rotvec / ORI_OUTPUT_MAX, -1, 1), [self._gripper()]))
         self.sim.take_ft_samples()  # drop samples from before this step (reset)
         self._make_default_context_current()
@@ -251,6 +252,11 @@ class WristTaskEnv(gym.Env):
         return bool(hit.any())
 
     # -- internals -------------------------------------------------------------------------------
+    def _position_goal(self, tip: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """The tool point's goal for this step: moved by ``action * action_scale`` from where it
+        is (robosuite's OSC re-bases its goal on the achieved pose), clipped to the workspace."""
+        return np.clip(tip + action * self.config.action_scale, *self.tip_bounds)
+
     def _gripper(self) -> float:
         """The gripper command every step: -1 open, 1 closed."""
         return -1.0
