@@ -40,7 +40,7 @@ def main() -> int:
     # as repbench.pipeline.plan builds the privileged stage: the suite's SAC settings, then
     # PRIVILEGED_AGENT_PARAMS, then the suite's explicit privileged settings
     params = {**suite.agent_params.get("sac", {}), **PRIVILEGED_AGENT_PARAMS,
-              **rl.privileged_params, "backend": args.backend, "progress": False}
+              **rl.privileged_params, "backend": args.backend}
     steps = args.steps or rl.full_state_train_steps
     task = repbench.tasks.get(args.task)(**suite.task_params.get(args.task, {}))
     data = task.collect("random", n_episodes=2, steps_per_episode=5, seed=suite.dataset.seed,
