@@ -1,5 +1,9 @@
 """Data collection: backwards exploration from the goal (``random``) and ``on_policy`` rollouts.
 
+:func:`collect` works on any :class:`~repbench_tasks.env.WristTaskEnv` through its collection
+hooks (``exploration_options``, ``make_explorer``, ``on_policy_options``, ``collection_stats``);
+:class:`BackwardsExplorer` is the peg-in-hole's exploration policy.
+
 Rows are one per step: the observation at step n, the action taken there, the reward it earned,
 z° and the success flag at step n. Collection uses one environment and soft resets.
 """
@@ -7,14 +11,16 @@ z° and the success flag at step n. Collection uses one environment and soft res
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm.auto import tqdm
 
 from repbench.dataset import Dataset
 from repbench.errors import ConfigError
-from repbench_tasks.env import PegInHoleEnv
+
+if TYPE_CHECKING:
+    from repbench_tasks.env import WristTaskEnv
 
 KINDS = ("random", "on_policy")
 
@@ -90,48 +96,47 @@ def check_collect_args(kind: str, n_episodes: Any, steps_per_episode: Any,
             raise ConfigError(f"collect: {name}={v!r} must be a positive integer")
 
 
-def collect(env: PegInHoleEnv, kind: str, *, n_episodes: int, steps_per_episode: int,
+def collect(env: WristTaskEnv, kind: str, *, n_episodes: int, steps_per_episode: int,
             seed: int, policy: Callable[[Mapping[str, np.ndarray]], np.ndarray] | None = None,
             progress: bool = True, explorer_params: Mapping[str, float] | None = None
             ) -> tuple[Dataset, dict[str, Any]]:
     """Roll out ``n_episodes`` x ``steps_per_episode`` steps; return the dataset and statistics.
 
-    ``random`` starts every episode inserted in the hole at grid position ``episode % G`` (with
-    ``hole_sampling="uniform"``: at a hole drawn uniformly in the grid's square) and explores
-    backwards; ``on_policy`` starts above a hole drawn by the episode's seed and calls
-    ``policy`` on one step's observation dict (no batch axis) with ``true_state`` added.
-    ``explorer_params`` override :class:`BackwardsExplorer`'s keyword arguments (``random``).
+    ``random`` resets episode ``ep`` with ``env.exploration_options(ep)`` and acts with
+    ``env.make_explorer`` (for the peg-in-hole: start inserted in the hole at grid position
+    ``ep % G``, or with ``hole_sampling="uniform"`` at a hole drawn uniformly in the grid's
+    square, and explore backwards); ``on_policy`` resets with ``env.on_policy_options(ep)``
+    (the peg-in-hole: above a hole drawn by the episode's seed) and calls ``policy`` on one
+    step's observation dict (no batch axis) with ``true_state`` added.
+    ``explorer_params`` override the explorer's keyword arguments (``random``).
     """
     check_collect_args(kind, n_episodes, steps_per_episode, policy)
     seeds = np.random.SeedSequence(seed).generate_state(n_episodes, dtype=np.uint32)
     keys = ("image", "ft", "proprio", "last_action")
     obs_rows: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     actions, states, rewards, successes, contacts = [], [], [], [], []
-    n_grid = len(env.grid)
+    action_shape = tuple(env.action_space.shape or ())
     bar = tqdm(total=n_episodes * steps_per_episode, disable=not progress,
-               desc=f"PegInHole {kind}", unit="step")
+               desc=f"{env.task_label} {kind}", unit="step")
     for ep in range(n_episodes):
         ep_seed = int(seeds[ep])
         if kind == "random":
-            # grid: cycle through the grid positions; uniform: the environment draws the hole
-            # anywhere in the grid's square (held-out data off the training positions)
-            options = ({"start": "inserted", "hole_index": ep % n_grid}
-                       if env.config.hole_sampling == "grid" else {"start": "inserted"})
-            explorer = BackwardsExplorer(np.random.default_rng(ep_seed),
-                                         **dict(explorer_params or {}))
+            options = env.exploration_options(ep)
+            explore = env.make_explorer(np.random.default_rng(ep_seed),
+                                        **dict(explorer_params or {}))
         else:
-            options = {"start": "above"}
+            options = env.on_policy_options(ep)
         obs, info = env.reset(seed=ep_seed, options=options)
         for _ in range(steps_per_episode):
             if kind == "random":
-                action = explorer(env.tip_offset())
+                action = explore()
             else:
                 assert policy is not None
                 step_obs = {**obs, "true_state": info["true_state"]}
                 action = np.asarray(policy(step_obs), dtype=np.float32).reshape(-1)
-                if action.shape != (3,) or not np.all(np.isfinite(action)):
-                    raise ConfigError(f"policy returned action {action!r}; expected 3 finite "
-                                      "values in [-1, 1]")
+                if action.shape != action_shape or not np.all(np.isfinite(action)):
+                    raise ConfigError(f"policy returned action {action!r}; expected "
+                                      f"{int(np.prod(action_shape))} finite values in [-1, 1]")
             for k in keys:
                 obs_rows[k].append(obs[k])
             states.append(info["true_state"])
@@ -156,5 +161,6 @@ def collect(env: PegInHoleEnv, kind: str, *, n_episodes: int, steps_per_episode:
              "success_share": float(np.mean(successes)),
              "ft_force_quantiles": {f"q{q}": round(float(np.quantile(force, q / 100)), 3)
                                     for q in (10, 50, 90, 99)},
-             "n_steps": n, "episode_seeds": [int(s) for s in seeds]}
+             "n_steps": n, "episode_seeds": [int(s) for s in seeds],
+             **env.collection_stats(dataset.observations)}
     return dataset, stats

@@ -1,11 +1,16 @@
-"""The robosuite 1.5.2 peg-in-hole simulation: a Panda holding a square peg rigidly, and a hole.
+"""robosuite 1.5.2 simulations of repbench's tasks: the shared wrist sensing, and the peg-in-hole.
 
-The peg is a box welded into the gripper's ``eef`` body (below the wrist force/torque site, so the
-sensor feels every contact on it); it cannot slip. The hole is a fixed ``CompositeObject`` of four
-box walls on the table whose planar position is changed per episode through ``model.body_pos``
-(a soft reset, no XML rebuild). Physics runs at ``physics_dt`` (200 Hz by default); the wrist
-force/torque sensor is sampled at every physics substep for the low-pass filter (see
-:mod:`repbench_tasks.sensing`).
+:class:`WristSensing` is a mixin for any single-arm robosuite ``ManipulationEnv`` (repbench's own
+or a subclass of one of robosuite's environments): it sets the physics step, samples the wrist
+force/torque sensor at every physics substep for the low-pass filter (see
+:mod:`repbench_tasks.sensing`), runs robosuite's control path without its per-substep checks and
+history buffers, and computes only the robosuite observables repbench keeps.
+
+:class:`PegInHoleSim`: a Panda holding a square peg rigidly, and a hole. The peg is a box welded
+into the gripper's ``eef`` body (below the wrist force/torque site, so the sensor feels every
+contact on it); it cannot slip. The hole is a fixed ``CompositeObject`` of four box walls on the
+table whose planar position is changed per episode through ``model.body_pos`` (a soft reset, no
+XML rebuild). Physics runs at ``physics_dt`` (200 Hz by default).
 """
 
 from __future__ import annotations
@@ -26,9 +31,173 @@ from repbench_tasks.sensing import weight_wrench
 
 TABLE_FULL_SIZE = (0.8, 0.8, 0.05)
 TABLE_OFFSET = (0.0, 0.0, TABLE_TOP_Z)
+CONTROL_FREQ = 20
 
 #: Names of the robot's arm bodies whose visual geoms the wrist camera never sees.
 ARM_BODY_PREFIXES = ("robot0_link", "robot0_base", "mount0_", "fixed_mount0_")
+
+
+def osc_position_controller(action_scale: float) -> dict[str, Any]:
+    """robosuite's OSC_POSE controller config of repbench's tasks: world-frame deltas of at most
+    ``action_scale`` m (position) and 0.5 rad (orientation) per step, stiff fixed impedance."""
+    return {
+        "type": "BASIC",
+        "body_parts": {"right": {
+            "type": "OSC_POSE", "input_max": 1, "input_min": -1,
+            "output_max": [action_scale] * 3 + [0.5] * 3,
+            "output_min": [-action_scale] * 3 + [-0.5] * 3,
+            "kp": 150, "damping_ratio": 1, "impedance_mode": "fixed",
+            "kp_limits": [0, 300], "damping_ratio_limits": [0, 10],
+            "position_limits": None, "orientation_limits": None,
+            "uncouple_pos_ori": True, "input_type": "delta", "input_ref_frame": "world",
+            "interpolation": None, "ramp_ratio": 0.2, "gripper": {"type": "GRIP"},
+        }},
+    }
+
+
+class WristSensing:
+    """Mixin for a single-arm robosuite ``ManipulationEnv``: physics step, wrist force/torque
+    samples per substep, the fast control path and observable pruning.
+
+    Put it first in the bases (``class MySim(WristSensing, ManipulationEnv)``), call
+    :meth:`_init_wrist_sensing` before the robosuite ``__init__`` and
+    :meth:`_set_model_timestep` at the end of ``_load_model``. After ``_setup_references`` the
+    sim has ``ft_site_id``, ``eef_site_id`` (grip site), ``arm_qpos_idx``/``arm_qvel_idx`` and
+    ``ft_mass`` (everything below the sensor).
+    """
+
+    # attributes robosuite's ManipulationEnv provides (for type checkers)
+    sim: Any
+    robots: Any
+    model: Any
+    model_timestep: float
+    action_dim: int
+    _observables: dict[str, Any]
+    _obs_cache: dict[str, Any]
+
+    def _init_wrist_sensing(self, physics_dt: float) -> None:
+        """Set the physics step and allocate the per-substep sample buffer."""
+        self.physics_dt = physics_dt
+        self._live_observables: tuple[Any, ...] | None = None
+        # Per-substep wrist samples, filled in place: raw [force, torque] (6), the ft site's
+        # rotation (9) and the subtree's centre of mass relative to the site (3).
+        self._ft_buf = np.zeros((round(1.0 / (CONTROL_FREQ * physics_dt)) + 1, 18))
+        self._n_ft = 0
+
+    # -- model -------------------------------------------------------------------------------
+    def initialize_time(self, control_freq: float) -> None:
+        super().initialize_time(control_freq)  # type: ignore[misc]
+        self.model_timestep = self.physics_dt
+
+    def _set_model_timestep(self) -> None:
+        """Write ``physics_dt`` into the model's ``<option timestep>`` (end of ``_load_model``)."""
+        option = find_elements(root=self.model.root, tags="option", return_first=True)
+        option.set("timestep", repr(float(self.physics_dt)))
+
+    def _setup_references(self) -> None:
+        super()._setup_references()  # type: ignore[misc]
+        m = self.sim.model
+        robot = self.robots[0]
+        self.ft_body_id = m.body_name2id("gripper0_right_right_gripper")
+        self.ft_site_id = m.site_name2id("gripper0_right_ft_frame")
+        force_sensor = robot.gripper["right"].important_sensors["force_ee"]
+        torque_sensor = robot.gripper["right"].important_sensors["torque_ee"]
+        self.force_adr = int(m.sensor_adr[m.sensor_name2id(force_sensor)])
+        self.torque_adr = int(m.sensor_adr[m.sensor_name2id(torque_sensor)])
+        self.eef_site_id = m.site_name2id("gripper0_right_grip_site")
+        self.arm_qpos_idx = np.array(robot._ref_joint_pos_indexes)
+        self.arm_qvel_idx = np.array(robot._ref_joint_vel_indexes)
+        # Constant per model: the mass below the sensor and the force that holds it up (world).
+        self.ft_mass = float(m.body_subtreemass[self.ft_body_id])
+        self.ft_support = -self.ft_mass * np.array(m.opt.gravity, dtype=np.float64)
+        self._action_dim = self.action_dim  # robosuite recomputes it from the limits per call
+        # Actuator index arrays and control ranges per controlled part (robot.control's clip).
+        self._ctrl_parts = {
+            part: (np.asarray(idx), m.actuator_ctrlrange[idx, 0].copy(),
+                   m.actuator_ctrlrange[idx, 1].copy())
+            for part, idx in robot._ref_actuators_indexes_dict.items()}
+
+    def _reset_internal(self) -> None:
+        super()._reset_internal()  # type: ignore[misc]
+        self._n_ft = 0
+
+    # -- control -------------------------------------------------------------------------------
+    def _pre_action(self, action: Any, policy_step: bool = False) -> None:
+        # What robot.control does (robosuite 1.5.2, fixed-base robot): on a policy step set the
+        # new controller goal; every substep run the controllers on the current state, clip the
+        # torques to the actuators' ranges and write them. Left out: its per-substep action
+        # checks and duplicate update_state, and its per-step history buffers (recent_qpos,
+        # recent_ee_* ...), which only robosuite's observables read and repbench disables.
+        # tests/tasks: the rollout equals robosuite's own path bit for bit.
+        robot = self.robots[0]
+        composite = robot.composite_controller
+        if policy_step:
+            if len(action) != self._action_dim:
+                raise ValueError(f"robosuite action has {len(action)} values, expected "
+                                 f"{self._action_dim}")
+            composite.update_state()
+            composite.set_goal(action)
+        applied = composite.run_controller(robot._enabled_parts)
+        ctrl = self.sim.data._data.ctrl
+        for part, torques in applied.items():
+            idx, lo, hi = self._ctrl_parts[part]
+            ctrl[idx] = np.clip(torques, lo, hi)
+        self._record_ft()
+
+    def _update_observables(self, force: bool = False) -> None:
+        # Called every substep: skip the observables repbench has disabled (all but the wrist
+        # camera of the default-rendering mode).
+        live = self._live_observables
+        if live is None:
+            super()._update_observables(force)  # type: ignore[misc]
+            return
+        for observable in live:
+            observable.update(timestep=self.model_timestep, obs_cache=self._obs_cache,
+                              force=force)
+
+    def keep_observables(self, names: tuple[str, ...]) -> None:
+        """Enable only the robosuite observables ``names``; the others are never computed."""
+        for name, observable in self._observables.items():
+            keep = name in names
+            observable.set_enabled(keep)
+            observable.set_active(keep)
+        self._live_observables = tuple(self._observables[n] for n in names)
+
+    # -- the wrist sensor ------------------------------------------------------------------------
+    def raw_ft(self) -> np.ndarray:
+        """The wrist sensor's raw [force, torque] in the sensor frame (weight included)."""
+        d = self.sim.data._data.sensordata
+        return np.concatenate((d[self.force_adr:self.force_adr + 3],
+                               d[self.torque_adr:self.torque_adr + 3]))
+
+    def compensated_ft(self) -> np.ndarray:
+        """The wrist [force, torque] with the weight below the sensor removed (sensor frame)."""
+        m, d = self.sim.model._model, self.sim.data._data
+        rot = d.site_xmat[self.ft_site_id].reshape(3, 3)
+        weight = weight_wrench(rot, d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id],
+                               self.ft_mass, m.opt.gravity)
+        return self.raw_ft() - weight
+
+    def _record_ft(self) -> None:
+        # In-place copies only (a few microseconds); the weight is removed once per control step
+        # for all substeps together in take_ft_samples.
+        d = self.sim.data._data
+        row = self._ft_buf[self._n_ft]
+        row[0:3] = d.sensordata[self.force_adr:self.force_adr + 3]
+        row[3:6] = d.sensordata[self.torque_adr:self.torque_adr + 3]
+        row[6:15] = d.site_xmat[self.ft_site_id]
+        np.subtract(d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id], out=row[15:18])
+        self._n_ft = min(self._n_ft + 1, len(self._ft_buf) - 1)
+
+    def take_ft_samples(self) -> np.ndarray:
+        """The compensated [force, torque] samples of the substeps since the last call, [n, 6]
+        (equal to :meth:`compensated_ft` at each substep), and start a new batch."""
+        buf = self._ft_buf[:self._n_ft]
+        self._n_ft = 0
+        rot = buf[:, 6:15].reshape(-1, 3, 3)
+        weight = weight_wrench(rot, buf[:, 15:18], np.zeros(3), self.ft_mass,
+                               self.sim.model._model.opt.gravity)
+        return buf[:, :6] - weight
 
 
 def hole_walls(name: str, inner_half: float, wall: float, depth: float) -> CompositeObject:
@@ -65,7 +234,7 @@ def hole_walls(name: str, inner_half: float, wall: float, depth: float) -> Compo
     )
 
 
-class PegInHoleSim(ManipulationEnv):
+class PegInHoleSim(WristSensing, ManipulationEnv):
     """Single-arm Panda peg-in-hole on robosuite's table arena.
 
     Args:
@@ -81,7 +250,7 @@ class PegInHoleSim(ManipulationEnv):
     def __init__(self, *, peg_half_width: float, peg_length: float, clearance: float,
                  hole_depth: float, wall_thickness: float, action_scale: float,
                  physics_dt: float = 0.002, **kwargs: Any) -> None:
-        self.physics_dt = physics_dt
+        self._init_wrist_sensing(physics_dt)
         self.peg_half_width = peg_half_width
         self.peg_length = peg_length
         self.clearance = clearance
@@ -90,32 +259,10 @@ class PegInHoleSim(ManipulationEnv):
         self.table_full_size = TABLE_FULL_SIZE
         self.table_offset = np.array(TABLE_OFFSET)
         self.hole_xy = np.zeros(2)
-        self._live_observables: tuple[Any, ...] | None = None
-        # Per-substep wrist samples, filled in place: raw [force, torque] (6), the ft site's
-        # rotation (9) and the subtree's centre of mass relative to the site (3).
-        self._ft_buf = np.zeros((round(1.0 / (20.0 * physics_dt)) + 1, 18))
-        self._n_ft = 0
-        controller = {
-            "type": "BASIC",
-            "body_parts": {"right": {
-                "type": "OSC_POSE", "input_max": 1, "input_min": -1,
-                "output_max": [action_scale] * 3 + [0.5] * 3,
-                "output_min": [-action_scale] * 3 + [-0.5] * 3,
-                "kp": 150, "damping_ratio": 1, "impedance_mode": "fixed",
-                "kp_limits": [0, 300], "damping_ratio_limits": [0, 10],
-                "position_limits": None, "orientation_limits": None,
-                "uncouple_pos_ori": True, "input_type": "delta", "input_ref_frame": "world",
-                "interpolation": None, "ramp_ratio": 0.2, "gripper": {"type": "GRIP"},
-            }},
-        }
-        super().__init__(robots="Panda", controller_configs=controller,
+        super().__init__(robots="Panda", controller_configs=osc_position_controller(action_scale),
                          initialization_noise=None, **kwargs)
 
     # -- model -------------------------------------------------------------------------------
-    def initialize_time(self, control_freq: float) -> None:
-        super().initialize_time(control_freq)
-        self.model_timestep = self.physics_dt
-
     def _load_model(self) -> None:
         super()._load_model()
         robot_model = self.robots[0].robot_model
@@ -142,8 +289,7 @@ class PegInHoleSim(ManipulationEnv):
         arena.worldbody.append(hole_obj)
 
         self.model = ManipulationTask(mujoco_arena=arena, mujoco_robots=[robot_model])
-        option = find_elements(root=self.model.root, tags="option", return_first=True)
-        option.set("timestep", repr(float(self.physics_dt)))
+        self._set_model_timestep()
         self.model.merge_assets(self.peg)
         self.model.merge_assets(self.hole)
         contact = find_elements(root=self.model.root, tags="contact", return_first=True)
@@ -161,31 +307,11 @@ class PegInHoleSim(ManipulationEnv):
         self.peg_geom_ids = np.array([m.geom_name2id(g) for g in self.peg.contact_geoms])
         self.hole_geom_ids = np.array([m.geom_name2id(g) for g in self.hole.contact_geoms])
         self.table_geom_id = m.geom_name2id("table_collision")
-        robot = self.robots[0]
-        self.ft_body_id = m.body_name2id("gripper0_right_right_gripper")
-        self.ft_site_id = m.site_name2id("gripper0_right_ft_frame")
-        force_sensor = robot.gripper["right"].important_sensors["force_ee"]
-        torque_sensor = robot.gripper["right"].important_sensors["torque_ee"]
-        self.force_adr = int(m.sensor_adr[m.sensor_name2id(force_sensor)])
-        self.torque_adr = int(m.sensor_adr[m.sensor_name2id(torque_sensor)])
-        self.eef_site_id = m.site_name2id("gripper0_right_grip_site")
-        self.arm_qpos_idx = np.array(robot._ref_joint_pos_indexes)
-        self.arm_qvel_idx = np.array(robot._ref_joint_vel_indexes)
-        # Constant per model: the hand-and-peg mass and the force that holds it up (world).
-        self.ft_mass = float(m.body_subtreemass[self.ft_body_id])
-        self.ft_support = -self.ft_mass * np.array(m.opt.gravity, dtype=np.float64)
-        self._action_dim = self.action_dim  # robosuite recomputes it from the limits per call
-        # Actuator index arrays and control ranges per controlled part (robot.control's clip).
-        self._ctrl_parts = {
-            part: (np.asarray(idx), m.actuator_ctrlrange[idx, 0].copy(),
-                   m.actuator_ctrlrange[idx, 1].copy())
-            for part, idx in robot._ref_actuators_indexes_dict.items()}
 
     def _reset_internal(self) -> None:
         super()._reset_internal()
         if hasattr(self, "hole_body_id"):
             self.set_hole_xy(self.hole_xy)
-        self._n_ft = 0
 
     # -- task hooks (the gymnasium wrapper computes rewards) -----------------------------------
     def reward(self, action: Any = None) -> float:
@@ -194,83 +320,7 @@ class PegInHoleSim(ManipulationEnv):
     def _check_success(self) -> bool:
         return False
 
-    def _pre_action(self, action: Any, policy_step: bool = False) -> None:
-        # What robot.control does (robosuite 1.5.2, fixed-base robot): on a policy step set the
-        # new controller goal; every substep run the controllers on the current state, clip the
-        # torques to the actuators' ranges and write them. Left out: its per-substep action
-        # checks and duplicate update_state, and its per-step history buffers (recent_qpos,
-        # recent_ee_* ...), which only robosuite's observables read and repbench disables.
-        # tests/tasks: the rollout equals robosuite's own path bit for bit.
-        robot = self.robots[0]
-        composite = robot.composite_controller
-        if policy_step:
-            if len(action) != self._action_dim:
-                raise ValueError(f"robosuite action has {len(action)} values, expected "
-                                 f"{self._action_dim}")
-            composite.update_state()
-            composite.set_goal(action)
-        applied = composite.run_controller(robot._enabled_parts)
-        ctrl = self.sim.data._data.ctrl
-        for part, torques in applied.items():
-            idx, lo, hi = self._ctrl_parts[part]
-            ctrl[idx] = np.clip(torques, lo, hi)
-        self._record_ft()
-
-    def _update_observables(self, force: bool = False) -> None:
-        # Called every substep: skip the observables repbench has disabled (all but the wrist
-        # camera of the default-rendering mode).
-        live = self._live_observables
-        if live is None:
-            super()._update_observables(force)
-            return
-        for observable in live:
-            observable.update(timestep=self.model_timestep, obs_cache=self._obs_cache,
-                              force=force)
-
-    def keep_observables(self, names: tuple[str, ...]) -> None:
-        """Enable only the robosuite observables ``names``; the others are never computed."""
-        for name, observable in self._observables.items():
-            keep = name in names
-            observable.set_enabled(keep)
-            observable.set_active(keep)
-        self._live_observables = tuple(self._observables[n] for n in names)
-
     # -- helpers -------------------------------------------------------------------------------
-    def raw_ft(self) -> np.ndarray:
-        """The wrist sensor's raw [force, torque] in the sensor frame (weight included)."""
-        d = self.sim.data._data.sensordata
-        return np.concatenate((d[self.force_adr:self.force_adr + 3],
-                               d[self.torque_adr:self.torque_adr + 3]))
-
-    def compensated_ft(self) -> np.ndarray:
-        """The wrist [force, torque] with the hand-and-peg weight removed (sensor frame)."""
-        m, d = self.sim.model._model, self.sim.data._data
-        rot = d.site_xmat[self.ft_site_id].reshape(3, 3)
-        weight = weight_wrench(rot, d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id],
-                               self.ft_mass, m.opt.gravity)
-        return self.raw_ft() - weight
-
-    def _record_ft(self) -> None:
-        # In-place copies only (a few microseconds); the weight is removed once per control step
-        # for all substeps together in take_ft_samples.
-        d = self.sim.data._data
-        row = self._ft_buf[self._n_ft]
-        row[0:3] = d.sensordata[self.force_adr:self.force_adr + 3]
-        row[3:6] = d.sensordata[self.torque_adr:self.torque_adr + 3]
-        row[6:15] = d.site_xmat[self.ft_site_id]
-        np.subtract(d.subtree_com[self.ft_body_id], d.site_xpos[self.ft_site_id], out=row[15:18])
-        self._n_ft = min(self._n_ft + 1, len(self._ft_buf) - 1)
-
-    def take_ft_samples(self) -> np.ndarray:
-        """The compensated [force, torque] samples of the substeps since the last call, [n, 6]
-        (equal to :meth:`compensated_ft` at each substep), and start a new batch."""
-        buf = self._ft_buf[:self._n_ft]
-        self._n_ft = 0
-        rot = buf[:, 6:15].reshape(-1, 3, 3)
-        weight = weight_wrench(rot, buf[:, 15:18], np.zeros(3), self.ft_mass,
-                               self.sim.model._model.opt.gravity)
-        return buf[:, :6] - weight
-
     def set_hole_xy(self, xy: np.ndarray) -> None:
         """Move the fixed hole (soft reset: ``model.body_pos``, then kinematics)."""
         self.hole_xy = np.asarray(xy, dtype=np.float64).copy()
