@@ -27,7 +27,7 @@ No prediction is made with fewer than :data:`MIN_REFERENCE` reference encoders.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -232,28 +232,29 @@ def reference_table(metric_rows: Iterable[Mapping[str, Any]],
 def predict_from_rows(metric_rows: Iterable[Mapping[str, Any]],
                       rl_rows: Iterable[Mapping[str, Any]], encoder: str,
                       families: Mapping[str, str] | None = None,
-                      method: Method | None = None) -> list[dict[str, Any]]:
+                      method: Method | None = None,
+                      choose: Callable[..., tuple[Method, Any, str | None, float]] | None = None
+                      ) -> list[dict[str, Any]]:
     """:func:`predict_return` for ``encoder`` for every task × agent in the reference rows
     (:class:`repbench.analysis.results.Results` rows; ``encoder``'s own RL rows, if any, are
     ignored).
 
-    With ``families`` and no ``method``, each task × agent uses the method whose coverage
-    holds out of sample on the reference encoders
-    (:func:`repbench.analysis.robustness.validated_method`), and the prediction carries that
+    With ``families``, no ``method`` and ``choose`` (``choose(metric_rows, rl_rows, families,
+    task, agent)``, i.e. :func:`repbench.analysis.robustness.validated_method`), each task ×
+    agent uses the method whose coverage holds out of sample on the reference encoders, and
+    the prediction carries that
     measurement: ``measured_coverage`` with ``coverage_ci``, ``median_half_width`` and
     ``method_warning``.
     """
-    from repbench.analysis.robustness import validated_method
-
     metric_rows, rl_rows = list(metric_rows), list(rl_rows)
     out = []
     for task, agent in sorted({(r["task"], r["agent"]) for r in rl_rows}):
         values, runs = reference_table(metric_rows, rl_rows, task, agent, exclude=encoder)
         new = values.pop(encoder, {})
         chosen, measured, warning, width = method or DEFAULT_METHOD, None, None, float("nan")
-        if method is None and families:
+        if method is None and families and choose is not None:
             ref_rows = [r for r in rl_rows if r["encoder"] != encoder]
-            chosen, measured, warning, width = validated_method(
+            chosen, measured, warning, width = choose(
                 [r for r in metric_rows if r["encoder"] != encoder], ref_rows, families,
                 task, agent)
         pred = predict_return(values, {e: float(np.mean(v)) for e, v in runs.items()}, new,

@@ -130,10 +130,12 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
                                    "reference_records": str(ref_dir),
                                    "n_reference_records": len(reference_records)}
     if metrics_only:
+        from repbench.analysis.robustness import validated_method
         from repbench.report.families import encoder_families
 
         res.predictions = predict_from_rows(res.metric_rows, res.rl_rows, encoder,
-                                            families=encoder_families(res))
+                                            families=encoder_families(res),
+                                            choose=validated_method)
         res.provenance["evaluated"]["predictions"] = res.predictions
     write_leaderboards(res, out_dir)
     for w in warnings:
