@@ -104,13 +104,17 @@ def leaderboard(
     records: Annotated[Optional[Path], typer.Option(  # noqa: UP045
         "--records", help="Build from this folder of result records (e.g. "
         "leaderboards/smoke/records) instead of the store.")] = None,
+    longer: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--longer", help="Leaderboard folder of the same task x agent trained for longer "
+        "(e.g. leaderboards/quick/longer): adds the 10k-vs-longer rows to "
+        "robustness.csv.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.pipeline.runner import rebuild_leaderboards
 
     if records is not None and not records.is_dir():
         raise RepbenchError(f"records folder {records} does not exist")
-    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records)
+    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records, longer=longer)
     typer.echo(f"leaderboards written to {out_dir}")
 
 

@@ -300,6 +300,11 @@ def _returns(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str,
     return out
 
 
+def _steps_label(steps: int) -> str:
+    """30000 → "30k"; a budget that is not a whole thousand keeps its digits."""
+    return f"{steps // 1000}k" if steps >= 1000 and steps % 1000 == 0 else str(steps)
+
+
 def _learned(families: Mapping[str, str]) -> list[str]:
     return [e for e, f in families.items() if f != "baselines"]
 
@@ -355,7 +360,7 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
                        if r["task"] == task and r["agent"] == agent})
         if not base:
             continue
-        short, long = f"{base[0] // 1000}k", f"{steps[-1] // 1000}k"
+        short, long = _steps_label(base[0]), _steps_label(steps[-1])
         checks.append(ranking_agreement(
             _returns(rl_rows, task, agent, base[0]), _returns(longer, task, agent, steps[-1]),
             check=f"{agent.upper()} {short} vs {long} ranking {task}", kind="kendall",

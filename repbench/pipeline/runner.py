@@ -173,13 +173,53 @@ def check_workers(workers: int | None) -> None:
                           "one worker per CPU core")
 
 
+def longer_results(folder: str | Path, base: Results) -> Results:
+    """The results in ``folder`` (a leaderboard folder, or its ``records/``) of the same task ×
+    agent as ``base`` trained for more steps: the 10k-vs-longer checks of ``robustness.csv``.
+
+    Raises ConfigError (one line) when the folder holds no RL records, or its runs are of a
+    task × agent ``base`` has none of, or are not longer than ``base``'s.
+    """
+    folder = Path(folder)
+    where = folder / "records" if (folder / "records").is_dir() else folder
+    if not where.is_dir():
+        raise ConfigError(f"--longer {folder}: no such folder; pass the leaderboard folder of a "
+                          "longer-budget run (e.g. leaderboards/quick/longer)")
+    problems: list[str] = []
+    records = load_records(where, problems=problems)
+    longer = build_results(select(records, installed=installed_versions(records)))
+    longer.warnings.extend(problems)
+    longer.provenance["suite"] = _provenance_suite(where)
+    if not longer.rl_rows:
+        raise ConfigError(f"--longer {folder}: no RL records there; pass the leaderboard folder "
+                          "of a longer-budget run (e.g. leaderboards/quick/longer)")
+    for task, agent in sorted({(r["task"], r["agent"]) for r in longer.rl_rows}):
+        ours = [int(r["train_steps"]) for r in base.rl_rows
+                if r["task"] == task and r["agent"] == agent]
+        theirs = [int(r["train_steps"]) for r in longer.rl_rows
+                  if r["task"] == task and r["agent"] == agent]
+        if not ours:
+            raise ConfigError(f"--longer {folder}: its runs are {task} × {agent}, of which this "
+                              "suite has no RL results; pass a longer run of this suite's "
+                              "task × agent")
+        if max(theirs) <= max(ours):
+            raise ConfigError(f"--longer {folder}: its {task} × {agent} runs are "
+                              f"{max(theirs)} steps, not longer than this suite's {max(ours)}; "
+                              "pass the leaderboard of a longer-budget run")
+    return longer
+
+
 def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None,
-                         records: str | Path | None = None) -> Path:
+                         records: str | Path | None = None,
+                         longer: str | Path | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
     With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``) they are
-    computed from those records alone, without a store or a plan.
+    computed from those records alone, without a store or a plan. With ``longer`` (the
+    leaderboard folder of the same task × agent trained for longer, e.g.
+    ``leaderboards/quick/longer``) ``robustness.csv`` gets the budget rows
+    (:func:`longer_results`).
     """
     s = load_suite(suite)
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
@@ -195,4 +235,11 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     if not (results.encoder_rows or results.metric_rows or results.rl_rows):
         raise RepbenchError(f"no results of suite {s.name!r} in {where}; run "
                             f"`repbench run --suite {suite}` with the same --store first")
-    return write_leaderboards(results, out_dir)
+    extra = None
+    if longer is not None:
+        extra = longer_results(longer, results)
+        results.provenance["longer"] = {
+            "folder": str(longer), "suite": extra.provenance.get("suite"),
+            "train_steps": sorted({int(r["train_steps"]) for r in extra.rl_rows}),
+            "encoders": sorted({str(r["encoder"]) for r in extra.rl_rows})}
+    return write_leaderboards(results, out_dir, longer=extra)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -104,3 +105,32 @@ def test_bad_parameter_fails_before_any_work(suite_file: Path, tmp_path: Path) -
         run_suite(suite_file, store=tmp_path / "s", out=tmp_path / "lb", workers=1,
                   progress=False)
     assert not (tmp_path / "s" / "dataset").exists()
+
+
+def test_longer_budget_rows_join_robustness_csv(suite_file: Path, tmp_path: Path,
+                                                store: Path) -> None:
+    run_suite(suite_file, store=store, out=tmp_path / "lb", workers=1, progress=False)
+    longer_file = tmp_path / "toy_longer.toml"
+    longer_file.write_text(SUITE.replace('name = "toy"', 'name = "toy_longer"')
+                           .replace("train_steps = 150\n", "train_steps = 300\n", 1))
+    run_suite(longer_file, store=store, out=tmp_path / "longer", workers=1, progress=False)
+
+    out = rebuild_leaderboards(suite_file, store=store, out=tmp_path / "joined",
+                               longer=tmp_path / "longer")
+    rows = pd.read_csv(out / "robustness.csv").set_index("check")
+    row = rows.loc["SAC 150 vs 300 ranking ToyReach-v0"]
+    assert row["statistic"] == "Kendall τ of per-encoder mean returns"
+    assert row["verdict"] == "inconclusive"  # 3 encoders: at least 4 needed
+    assert "10k best metric" not in " ".join(rows.index)
+    assert "150 best metric at 300 ToyReach-v0 sac" in rows.index
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["longer"]["train_steps"] == [300]
+    assert prov["longer"]["suite"] == "toy_longer"
+
+    # the same budget is not a longer one; a folder without RL records is not a run
+    with pytest.raises(ConfigError, match="not longer than this suite's 150"):
+        rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x", longer=tmp_path / "lb")
+    (tmp_path / "empty" / "records").mkdir(parents=True)
+    with pytest.raises(ConfigError, match="no RL records there"):
+        rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x",
+                             longer=tmp_path / "empty")
