@@ -209,8 +209,8 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
                                      "epochs_run": values.get("epochs_run"),
                                      "heldout_loss": values.get("heldout_loss")})
             for stem, png in (values.get("files") or {}).items():
-                path = Path(r["_path"]).parent / png if r.get("_path") else None
-                if path is not None and path.is_file():
+                path = _encoder_figure(r, stem, enc, png)
+                if path is not None:
                     res.figures_from_store[f"{stem} {enc}"] = path
         elif kind == "metric":
             name = r["metric"]["name"]
@@ -274,6 +274,20 @@ def _provenance(suite: Any, records: list[Mapping[str, Any]]) -> dict[str, Any]:
         "n_records": len(records),
     })
     return out
+
+
+def _encoder_figure(record: Mapping[str, Any], stem: str, encoder: str | None,
+                    png: str) -> Path | None:
+    """The encoder's figure ``png`` beside its record in the store or, for a record shipped in
+    a leaderboard's ``records/encoder/``, the copy in that leaderboard's ``figures/`` (a
+    rebuild from records keeps the training curves and reconstructions it cannot redraw)."""
+    if not record.get("_path"):
+        return None
+    here = Path(record["_path"]).parent
+    for path in (here / png, here.parent.parent / "figures" / f"{stem}_{encoder}.png"):
+        if path.is_file():
+            return path
+    return None
 
 
 def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Path]:

@@ -300,7 +300,12 @@ def _returns(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str,
     return out
 
 
-def _steps_label(steps: int) -> str:
+def budget_check_name(agent: str, short: int, long: int, task: str) -> str:
+    """The name of the 10k-vs-longer ranking check in ``robustness.csv``."""
+    return f"{agent.upper()} {steps_label(short)} vs {steps_label(long)} ranking {task}"
+
+
+def steps_label(steps: int) -> str:
     """30000 → "30k"; a budget that is not a whole thousand keeps its digits."""
     return f"{steps // 1000}k" if steps >= 1000 and steps % 1000 == 0 else str(steps)
 
@@ -360,10 +365,10 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
                        if r["task"] == task and r["agent"] == agent})
         if not base:
             continue
-        short, long = _steps_label(base[0]), _steps_label(steps[-1])
+        short, long = steps_label(base[0]), steps_label(steps[-1])
         checks.append(ranking_agreement(
             _returns(rl_rows, task, agent, base[0]), _returns(longer, task, agent, steps[-1]),
-            check=f"{agent.upper()} {short} vs {long} ranking {task}", kind="kendall",
+            check=budget_check_name(agent, base[0], steps[-1], task), kind="kendall",
             threshold=BUDGET_THRESHOLD))
         if ranking is not None and longer_ranking is not None:
             checks.append(best_metric_agreement(

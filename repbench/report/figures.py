@@ -8,7 +8,9 @@
 * ``true_state_diffs.png`` — first and second differences of z° (Fig. 6a);
 * ``predicted_vs_actual.png`` — each encoder's return predicted with its whole family held out
   (the calibration ``evaluate`` uses), with the stated interval, against its actual mean return
-  (one panel per task × agent; a black edge marks an encoder outside its interval).
+  (one panel per task × agent; a black edge marks an encoder outside its interval);
+* ``budget_agreement.png`` — where a longer-budget run was joined, each encoder's mean return at
+  the suite's budget against the longer one (one panel per task × agent, encoders named).
 """
 
 from __future__ import annotations
@@ -85,6 +87,31 @@ def _prune_labels(fig: Any, labels: list[tuple[Any, Any]]) -> None:
             text.remove()
         else:
             kept.setdefault(ax, []).append(box)
+
+
+#: Where :func:`_place_labels` tries a point's label, in order: (dx, dy) points, alignment.
+_LABEL_SPOTS = ((5, -3, "left"), (-5, -3, "right"), (5, 6, "left"), (5, -11, "left"),
+                (-5, 6, "right"), (-5, -11, "right"))
+
+
+def _place_labels(fig: Any, labels: list[tuple[Any, Any]]) -> None:
+    """Move each text label (in priority order) to the first spot beside its point where it
+    overlaps no placed label and stays in its panel; remove it where there is none."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    kept: dict[Any, list[Any]] = {}
+    for ax, text in labels:
+        for dx, dy, align in _LABEL_SPOTS:
+            text.set_position((dx, dy))
+            text.set_horizontalalignment(align)
+            box = text.get_window_extent(renderer).expanded(1.05, 1.1)
+            inside = (ax.bbox.x0 <= box.x0 and box.x1 <= ax.bbox.x1 + 2
+                      and ax.bbox.y0 <= box.y0 and box.y1 <= ax.bbox.y1)
+            if inside and not any(box.overlaps(k) for k in kept.get(ax, [])):
+                kept.setdefault(ax, []).append(box)
+                break
+        else:
+            text.remove()
 
 
 def _scatter_panel(ax: Any, res: Any, metric: str, agent: str,
@@ -498,6 +525,71 @@ def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | N
     return save_figure(fig, path)
 
 
+def _mean_returns(rows: Any, task: str, agent: str, steps: int
+                  ) -> dict[str, tuple[float, float, float]]:
+    rets: dict[str, list[float]] = {}
+    for r in rows:
+        if r["task"] == task and r["agent"] == agent and int(r["train_steps"]) == steps:
+            rets.setdefault(r["encoder"], []).append(r["eval_return"])
+    return {e: mean_ci(v) for e, v in rets.items()}
+
+
+def budget_agreement(res: Any, path: Path) -> Path | None:
+    """Each encoder's mean return (seeds' 95 % t-interval as bars) at the suite's budget (x)
+    against a longer budget (y), one panel per task × agent of the joined longer-budget run
+    (``res.robustness["longer_rl"]``), every encoder named, the diagonal dashed; the title
+    gives the Kendall τ check of ``robustness.csv``."""
+    from repbench.analysis.robustness import budget_check_name
+
+    rob = getattr(res, "robustness", None) or {}
+    longer, checks = rob.get("longer_rl") or [], rob.get("checks")
+    panels = sorted({(r["task"], r["agent"]) for r in longer})
+    if not panels:
+        return None
+    families = encoder_families(res)
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(5.2 * len(panels), 4.6))
+    labels: list[tuple[Any, Any]] = []
+    for ax, (task, agent) in zip(axes[0], panels, strict=True):
+        base = min((int(r["train_steps"]) for r in res.rl_rows
+                    if r["task"] == task and r["agent"] == agent), default=None)
+        if base is None:
+            continue
+        steps = max(int(r["train_steps"]) for r in longer
+                    if r["task"] == task and r["agent"] == agent)
+        short = _mean_returns(res.rl_rows, task, agent, base)
+        far = _mean_returns(longer, task, agent, steps)
+        both = sorted(set(short) & set(far), key=lambda e: -far[e][0])
+        for enc in both:
+            (x, xlo, xhi), (y, ylo, yhi) = short[enc], far[enc]
+            color, marker = family_style(families.get(enc, ""))
+            ax.errorbar(x, y, xerr=[[x - xlo], [xhi - x]] if np.isfinite(xlo) else None,
+                        yerr=[[y - ylo], [yhi - y]] if np.isfinite(ylo) else None,
+                        fmt="none", ecolor=color, alpha=0.35, elinewidth=0.8)
+            ax.plot([x], [y], ls="none", marker=marker, color=color, ms=6, mec="white",
+                    mew=0.5, zorder=3)
+            labels.append((ax, ax.annotate(enc, (x, y), xytext=(5, -3),
+                                           textcoords="offset points", fontsize=7,
+                                           color=color)))
+        _fit_limits(ax, {e: (short[e][0], far[e][0]) for e in both})
+        vals = [v for e in both for v in (short[e][0], far[e][0])]
+        if vals:
+            ax.plot([min(vals), max(vals)], [min(vals), max(vals)], color="#999", lw=0.8,
+                    ls="--")
+        name = budget_check_name(agent, base, steps, task)
+        check = None if checks is None else next(
+            (c for c in checks.itertuples(index=False) if c.check == name), None)
+        note = (f": Kendall τ {check.value:.2f} [{check.ci_low:.2f}, {check.ci_high:.2f}], "
+                f"{check.verdict}" if check is not None and np.isfinite(check.value) else "")
+        ax.set_title(f"{task} {agent}{note}", fontsize=8)
+        ax.set_xlabel(f"{agent} return at {base} steps (mean over seeds)", fontsize=8)
+        ax.set_ylabel(f"{agent} return at {steps} steps", fontsize=8)
+    fig.tight_layout()
+    _place_labels(fig, labels)
+    family_legend(fig, {families.get(r["encoder"], "") for r in longer} - {""}, y=1.0)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
     """Render every figure that the results support; name → PNG path."""
 
@@ -510,6 +602,7 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
     makers = {
         "Predicted vs actual return (leave one family out)": (
             predicted, "predicted_vs_actual"),
+        "Return at the suite's budget vs a longer one": (budget_agreement, "budget_agreement"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
         "Privileged agent learning curve": (privileged_curve, "privileged_curve"),
@@ -526,8 +619,9 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
     for name, src in sorted(res.figures_from_store.items()):
         dest = out_dir / f"{name.replace(' ', '_')}.png"
         dest.parent.mkdir(parents=True, exist_ok=True)
-        dest.write_bytes(src.read_bytes())
-        shrink_png(dest)
+        if src.resolve() != dest.resolve():
+            dest.write_bytes(src.read_bytes())
+            shrink_png(dest)
         kind, enc = name.split(" ", 1)
         out[f"{STORE_FIGURE_HEADINGS.get(kind, kind)}: {enc}"] = dest
     return out

@@ -187,7 +187,7 @@ def robustness_checks(res: Results, ranking: pd.DataFrame,
     checks, heldout = check_results(res.metric_rows, res.rl_rows, encoder_families(res), ranking,
                                     longer=longer_rows, longer_ranking=longer_ranking)
     table = robustness_table(checks)
-    res.robustness = {"checks": table, "heldout": heldout}
+    res.robustness = {"checks": table, "heldout": heldout, "longer_rl": list(longer_rows)}
     return table
 
 
@@ -218,8 +218,9 @@ def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = Non
     write_records(res.records, out_dir / "records")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)
+    kept = {p.resolve() for p in res.figures_from_store.values()}  # a rebuild's own copies
     for stale in (out_dir / "figures").glob("*.*"):  # figures of an earlier write
-        if stale.suffix in (".png", ".svg"):
+        if stale.suffix in (".png", ".svg") and stale.resolve() not in kept:
             stale.unlink()
     figures = make_figures(res, met, out_dir / "figures")
     (out_dir / "index.html").write_text(render_html(res, enc, met, figures, claims),

@@ -123,6 +123,8 @@ def test_longer_budget_rows_join_robustness_csv(suite_file: Path, tmp_path: Path
     assert row["verdict"] == "inconclusive"  # 3 encoders: at least 4 needed
     assert "10k best metric" not in " ".join(rows.index)
     assert "150 best metric at 300 ToyReach-v0 sac" in rows.index
+    assert (out / "figures" / "budget_agreement.png").is_file()
+    assert not (tmp_path / "lb" / "figures" / "budget_agreement.png").exists()
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["longer"]["train_steps"] == [300]
     assert prov["longer"]["suite"] == "toy_longer"
@@ -134,3 +136,18 @@ def test_longer_budget_rows_join_robustness_csv(suite_file: Path, tmp_path: Path
     with pytest.raises(ConfigError, match="no RL records there"):
         rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x",
                              longer=tmp_path / "empty")
+
+
+def test_rebuild_from_shipped_records_keeps_store_figures(tmp_path: Path) -> None:
+    """A shipped leaderboard rebuilt in place from its own records/ (no store) keeps the
+    training curves and reconstructions it once copied from the store: it cannot redraw them."""
+    import shutil
+
+    shipped = Path(__file__).resolve().parents[2] / "leaderboards" / "smoke"
+    out = shutil.copytree(shipped, tmp_path / "smoke")
+    before = {p.name: p.read_bytes() for p in (out / "figures").glob("loss_curves_*.png")}
+    assert before, "the shipped smoke leaderboard has training curves"
+    rebuild_leaderboards("smoke", store=tmp_path / "no-store", out=out, records=out / "records")
+    after = {p.name: p.read_bytes() for p in (out / "figures").glob("loss_curves_*.png")}
+    assert after == before
+    assert "Training curves" in (out / "index.html").read_text(encoding="utf-8")
