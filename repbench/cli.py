@@ -108,13 +108,17 @@ def leaderboard(
         "--longer", help="Leaderboard folder of the same task x agent trained for longer "
         "(e.g. leaderboards/quick/longer): adds the 10k-vs-longer rows to "
         "robustness.csv.")] = None,
+    agent_run: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--agent-run", help="Leaderboard folder of another agent on the same tasks and budget "
+        "(e.g. leaderboards/quick/ddpg): adds the SAC-vs-DDPG rows to robustness.csv.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.pipeline.runner import rebuild_leaderboards
 
     if records is not None and not records.is_dir():
         raise RepbenchError(f"records folder {records} does not exist")
-    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records, longer=longer)
+    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records, longer=longer,
+                                   agent_run=agent_run)
     typer.echo(f"leaderboards written to {out_dir}")
 
 

@@ -323,7 +323,9 @@ def _board(ranking: pd.DataFrame, task: str, agent: str) -> pd.DataFrame:
 def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Mapping[str, Any]],
                   families: Mapping[str, str], ranking: pd.DataFrame | None = None, *,
                   longer: Sequence[Mapping[str, Any]] = (),
-                  longer_ranking: pd.DataFrame | None = None
+                  longer_ranking: pd.DataFrame | None = None,
+                  other_agent: Sequence[Mapping[str, Any]] = (),
+                  other_ranking: pd.DataFrame | None = None
                   ) -> tuple[list[Check], pd.DataFrame]:
     """Every check the rows support, and the held-out predictions behind the calibration rows.
 
@@ -333,6 +335,9 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
         ranking: the metric leaderboard of these rows (``metrics.csv``): the best-metric checks.
         longer: RL rows of the same task × agent at a longer budget (the 10k-vs-30k checks),
             with ``longer_ranking`` their metric leaderboard.
+        other_agent: RL rows of another agent at the same budget (a separate run, e.g. DDPG
+            beside SAC), with ``other_ranking`` their metric leaderboard: the agent-agreement
+            checks, as if they were among ``rl_rows`` (no calibration rows of their own).
     """
     from repbench.analysis.calibration import reference_table
 
@@ -346,11 +351,16 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
         checks += c
         if not pred.empty:
             frames.append(pred.assign(task=task, agent=agent))
+    both_rows = [*rl_rows, *other_agent]
+    if other_ranking is not None and not other_ranking.empty:
+        ranking = other_ranking if ranking is None else pd.concat([ranking, other_ranking],
+                                                                 ignore_index=True)
+    both_pairs = {(r["task"], r["agent"]) for r in both_rows}
     for task in sorted({t for t, _ in pairs}):
-        agents = {a for t, a in pairs if t == task}
+        agents = {a for t, a in both_pairs if t == task}
         if {"sac", "ddpg"} <= agents:
             checks.append(ranking_agreement(
-                _returns(rl_rows, task, "sac"), _returns(rl_rows, task, "ddpg"),
+                _returns(both_rows, task, "sac"), _returns(both_rows, task, "ddpg"),
                 check=f"SAC vs DDPG ranking {task}", kind="spearman",
                 threshold=AGENT_THRESHOLD))
             if ranking is not None:

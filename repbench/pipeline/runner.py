@@ -9,6 +9,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from repbench.analysis.results import (
     Results,
@@ -173,6 +174,59 @@ def check_workers(workers: int | None) -> None:
                           "one worker per CPU core")
 
 
+def _companion_results(folder: str | Path, option: str, example: str, what: str) -> Results:
+    """The results of the leaderboard folder (or its ``records/``) given to ``option``;
+    ConfigError (one line) when it is missing or holds no RL records."""
+    folder = Path(folder)
+    where = folder / "records" if (folder / "records").is_dir() else folder
+    if not where.is_dir():
+        raise ConfigError(f"{option} {folder}: no such folder; pass the leaderboard folder of "
+                          f"{what} (e.g. {example})")
+    problems: list[str] = []
+    records = load_records(where, problems=problems)
+    res = build_results(select(records, installed=installed_versions(records)))
+    res.warnings.extend(problems)
+    res.provenance["suite"] = _provenance_suite(where)
+    if not res.rl_rows:
+        raise ConfigError(f"{option} {folder}: no RL records there; pass the leaderboard folder "
+                          f"of {what} (e.g. {example})")
+    return res
+
+
+def _companion_provenance(folder: str | Path, res: Results) -> dict[str, Any]:
+    return {"folder": str(folder), "suite": res.provenance.get("suite"),
+            "agents": sorted({str(r["agent"]) for r in res.rl_rows}),
+            "train_steps": sorted({int(r["train_steps"]) for r in res.rl_rows}),
+            "encoders": sorted({str(r["encoder"]) for r in res.rl_rows})}
+
+
+def agent_run_results(folder: str | Path, base: Results) -> Results:
+    """The results in ``folder`` (a leaderboard folder, or its ``records/``) of another agent on
+    ``base``'s tasks at ``base``'s budget (e.g. DDPG beside SAC): the agent-agreement checks of
+    ``robustness.csv``.
+
+    Raises ConfigError (one line) when the folder holds no RL records, or its runs are of an
+    agent ``base`` already has, a task ``base`` has no RL results on, or another budget.
+    """
+    other = _companion_results(folder, "--agent-run", "leaderboards/quick/ddpg",
+                               "a run of another agent")
+    for task, agent in sorted({(r["task"], r["agent"]) for r in other.rl_rows}):
+        ours = {int(r["train_steps"]) for r in base.rl_rows if r["task"] == task}
+        theirs = {int(r["train_steps"]) for r in other.rl_rows
+                  if r["task"] == task and r["agent"] == agent}
+        if any(r["task"] == task and r["agent"] == agent for r in base.rl_rows):
+            raise ConfigError(f"--agent-run {folder}: its runs are {task} × {agent}, which this "
+                              "suite already trains; pass a run of another agent")
+        if not ours:
+            raise ConfigError(f"--agent-run {folder}: its runs are on {task}, on which this "
+                              "suite has no RL results; pass a run on this suite's tasks")
+        if theirs != ours:
+            raise ConfigError(f"--agent-run {folder}: its {task} × {agent} runs are "
+                              f"{sorted(theirs)} steps, this suite's {sorted(ours)}; pass a "
+                              "run at this suite's budget (a longer one goes to --longer)")
+    return other
+
+
 def longer_results(folder: str | Path, base: Results) -> Results:
     """The results in ``folder`` (a leaderboard folder, or its ``records/``) of the same task ×
     agent as ``base`` trained for more steps: the 10k-vs-longer checks of ``robustness.csv``.
@@ -180,19 +234,8 @@ def longer_results(folder: str | Path, base: Results) -> Results:
     Raises ConfigError (one line) when the folder holds no RL records, or its runs are of a
     task × agent ``base`` has none of, or are not longer than ``base``'s.
     """
-    folder = Path(folder)
-    where = folder / "records" if (folder / "records").is_dir() else folder
-    if not where.is_dir():
-        raise ConfigError(f"--longer {folder}: no such folder; pass the leaderboard folder of a "
-                          "longer-budget run (e.g. leaderboards/quick/longer)")
-    problems: list[str] = []
-    records = load_records(where, problems=problems)
-    longer = build_results(select(records, installed=installed_versions(records)))
-    longer.warnings.extend(problems)
-    longer.provenance["suite"] = _provenance_suite(where)
-    if not longer.rl_rows:
-        raise ConfigError(f"--longer {folder}: no RL records there; pass the leaderboard folder "
-                          "of a longer-budget run (e.g. leaderboards/quick/longer)")
+    longer = _companion_results(folder, "--longer", "leaderboards/quick/longer",
+                                "a longer-budget run")
     for task, agent in sorted({(r["task"], r["agent"]) for r in longer.rl_rows}):
         ours = [int(r["train_steps"]) for r in base.rl_rows
                 if r["task"] == task and r["agent"] == agent]
@@ -212,14 +255,16 @@ def longer_results(folder: str | Path, base: Results) -> Results:
 def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None,
                          records: str | Path | None = None,
-                         longer: str | Path | None = None) -> Path:
+                         longer: str | Path | None = None,
+                         agent_run: str | Path | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
     With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``) they are
     computed from those records alone, without a store or a plan. With ``longer`` (the
     leaderboard folder of the same task × agent trained for longer, e.g.
     ``leaderboards/quick/longer``) ``robustness.csv`` gets the budget rows
-    (:func:`longer_results`).
+    (:func:`longer_results`); with ``agent_run`` (another agent at this budget, e.g.
+    ``leaderboards/quick/ddpg``) the agent-agreement rows (:func:`agent_run_results`).
     """
     s = load_suite(suite)
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
@@ -235,11 +280,11 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     if not (results.encoder_rows or results.metric_rows or results.rl_rows):
         raise RepbenchError(f"no results of suite {s.name!r} in {where}; run "
                             f"`repbench run --suite {suite}` with the same --store first")
-    extra = None
+    extra = other = None
     if longer is not None:
         extra = longer_results(longer, results)
-        results.provenance["longer"] = {
-            "folder": str(longer), "suite": extra.provenance.get("suite"),
-            "train_steps": sorted({int(r["train_steps"]) for r in extra.rl_rows}),
-            "encoders": sorted({str(r["encoder"]) for r in extra.rl_rows})}
-    return write_leaderboards(results, out_dir, longer=extra)
+        results.provenance["longer"] = _companion_provenance(longer, extra)
+    if agent_run is not None:
+        other = agent_run_results(agent_run, results)
+        results.provenance["agent_run"] = _companion_provenance(agent_run, other)
+    return write_leaderboards(results, out_dir, longer=extra, agent_run=other)

@@ -170,34 +170,42 @@ def paper_claims(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
     return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
 
 
-def robustness_checks(res: Results, ranking: pd.DataFrame,
-                      longer: Results | None = None) -> pd.DataFrame:
+def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | None = None,
+                      agent_run: Results | None = None) -> pd.DataFrame:
     """The "Does the answer hold?" checks (:func:`repbench.analysis.robustness.check_results`)
     as ``robustness.csv``'s table; the held-out predictions behind them go to
     ``res.robustness["heldout"]`` for the predicted-vs-actual figure.
 
     ``longer``: the results of the same task × agent trained for longer (a leaderboard's
     records, :func:`repbench.pipeline.runner.longer_results`): the 10k-vs-longer rows.
+    ``agent_run``: another agent's results at this budget
+    (:func:`repbench.pipeline.runner.agent_run_results`): the SAC-vs-DDPG rows.
     """
     from repbench.analysis.robustness import check_results, robustness_table
     from repbench.report.families import encoder_families
 
     longer_rows = longer.rl_rows if longer is not None else ()
     longer_ranking = metric_ranking(longer)[0] if longer is not None else None
+    other_rows = agent_run.rl_rows if agent_run is not None else ()
+    other_ranking = metric_ranking(agent_run)[0] if agent_run is not None else None
     checks, heldout = check_results(res.metric_rows, res.rl_rows, encoder_families(res), ranking,
-                                    longer=longer_rows, longer_ranking=longer_ranking)
+                                    longer=longer_rows, longer_ranking=longer_ranking,
+                                    other_agent=other_rows, other_ranking=other_ranking)
     table = robustness_table(checks)
-    res.robustness = {"checks": table, "heldout": heldout, "longer_rl": list(longer_rows)}
+    res.robustness = {"checks": table, "heldout": heldout, "longer_rl": list(longer_rows),
+                      "other_agent_rl": list(other_rows)}
     return table
 
 
-def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = None) -> Path:
+def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = None,
+                       agent_run: Results | None = None) -> Path:
     """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``robustness.csv``,
     ``provenance.json``, figures,
     ``index.html`` and the records they were computed from (``records/``).
 
     ``longer`` (the same task × agent at a longer budget) adds the budget rows to
-    ``robustness.csv``; its records stay where they are (their folder goes in the provenance).
+    ``robustness.csv``, ``agent_run`` (another agent at this budget) the agent-agreement rows;
+    their records stay where they are (their folders go in the provenance).
     """
     from repbench.report.figures import make_figures
     from repbench.report.report_html import render_html
@@ -210,7 +218,7 @@ def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = Non
         met = ranking.merge(met, on=["task", "agent", "metric"], how="left")
         enc = add_loo_predicted_return(enc, ranking, res.loo_predictions)
     claims = paper_claims(res, ranking)
-    robustness = robustness_checks(res, ranking, longer)
+    robustness = robustness_checks(res, ranking, longer, agent_run)
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     claims.to_csv(out_dir / "claims.csv", index=False, float_format="%.6g")

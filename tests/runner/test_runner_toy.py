@@ -151,3 +151,39 @@ def test_rebuild_from_shipped_records_keeps_store_figures(tmp_path: Path) -> Non
     after = {p.name: p.read_bytes() for p in (out / "figures").glob("loss_curves_*.png")}
     assert after == before
     assert "Training curves" in (out / "index.html").read_text(encoding="utf-8")
+
+
+def test_agent_run_rows_join_robustness_csv(suite_file: Path, tmp_path: Path,
+                                            store: Path) -> None:
+    """``--agent-run``: DDPG trained in its own run joins SAC's board as the SAC-vs-DDPG rows."""
+    run_suite(suite_file, store=store, out=tmp_path / "lb", workers=1, progress=False)
+    ddpg_suite = (SUITE.replace('name = "toy"', 'name = "toy_ddpg"')
+                  .replace('agents = ["sac"]', 'agents = ["ddpg"]')
+                  .replace("[agent_params.sac]", "[agent_params.ddpg]")
+                  .replace("full_state_train_steps = 150\n", "full_state_train_steps = 150\n"
+                           "privileged_params = { learning_starts = 50, batch_size = 32 }\n"))
+    ddpg_file = tmp_path / "toy_ddpg.toml"
+    ddpg_file.write_text(ddpg_suite)
+    run_suite(ddpg_file, store=store, out=tmp_path / "ddpg", workers=1, progress=False)
+
+    out = rebuild_leaderboards(suite_file, store=store, out=tmp_path / "joined",
+                               agent_run=tmp_path / "ddpg")
+    rows = pd.read_csv(out / "robustness.csv").set_index("check")
+    row = rows.loc["SAC vs DDPG ranking ToyReach-v0"]
+    assert row["statistic"] == "Spearman ρ of per-encoder mean returns"
+    assert row["verdict"] == "inconclusive"  # 3 encoders: at least 4 needed
+    assert "SAC's best metric under DDPG ToyReach-v0" in rows.index
+    assert not any("(" in c and "ddpg" in c for c in rows.index)  # no DDPG calibration rows
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["agent_run"]["agents"] == ["ddpg"]
+    assert prov["agent_run"]["suite"] == "toy_ddpg"
+
+    # SAC again is not another agent; DDPG at another budget is not this suite's budget
+    with pytest.raises(ConfigError, match="which this suite already trains"):
+        rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x",
+                             agent_run=tmp_path / "lb")
+    ddpg_file.write_text(ddpg_suite.replace("train_steps = 150\n", "train_steps = 200\n", 1))
+    run_suite(ddpg_file, store=store, out=tmp_path / "ddpg200", workers=1, progress=False)
+    with pytest.raises(ConfigError, match=r"runs are \[200\] steps, this suite's \[150\]"):
+        rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x",
+                             agent_run=tmp_path / "ddpg200")
