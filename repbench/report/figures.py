@@ -9,6 +9,8 @@
 * ``predicted_vs_actual.png`` — each encoder's return predicted with its whole family held out
   (the calibration ``evaluate`` uses), with the stated interval, against its actual mean return
   (one panel per task × agent; a black edge marks an encoder outside its interval);
+* ``agent_agreement.png`` — where DDPG ran beside SAC, each encoder's mean SAC return against
+  its mean DDPG return (one panel per task, encoders named).
 * ``budget_agreement.png`` — where a longer-budget run was joined, each encoder's mean return at
   the suite's budget against the longer one (one panel per task × agent, encoders named).
 """
@@ -534,6 +536,69 @@ def _mean_returns(rows: Any, task: str, agent: str, steps: int
     return {e: mean_ci(v) for e, v in rets.items()}
 
 
+def _paired_returns_panel(ax: Any, xs: Mapping[str, tuple[float, float, float]],
+                          ys: Mapping[str, tuple[float, float, float]],
+                          families: Mapping[str, str], labels: list[tuple[Any, Any]]) -> None:
+    """One encoder per point at (mean return under x, under y), the seeds' intervals as bars,
+    each named (its label appended to ``labels`` for :func:`_place_labels`), the diagonal
+    dashed."""
+    both = sorted(set(xs) & set(ys), key=lambda e: -ys[e][0])
+    for enc in both:
+        (x, xlo, xhi), (y, ylo, yhi) = xs[enc], ys[enc]
+        color, marker = family_style(families.get(enc, ""))
+        ax.errorbar(x, y, xerr=[[x - xlo], [xhi - x]] if np.isfinite(xlo) else None,
+                    yerr=[[y - ylo], [yhi - y]] if np.isfinite(ylo) else None,
+                    fmt="none", ecolor=color, alpha=0.35, elinewidth=0.8)
+        ax.plot([x], [y], ls="none", marker=marker, color=color, ms=6, mec="white",
+                mew=0.5, zorder=3)
+        labels.append((ax, ax.annotate(enc, (x, y), xytext=(5, -3),
+                                       textcoords="offset points", fontsize=7, color=color)))
+    _fit_limits(ax, {e: (xs[e][0], ys[e][0]) for e in both})
+    vals = [v for e in both for v in (xs[e][0], ys[e][0])]
+    if vals:
+        ax.plot([min(vals), max(vals)], [min(vals), max(vals)], color="#999", lw=0.8, ls="--")
+
+
+def _check_note(checks: Any, name: str, statistic: str) -> str:
+    """": <statistic> value [low, high], verdict" of the ``robustness.csv`` row ``name``."""
+    check = None if checks is None else next(
+        (c for c in checks.itertuples(index=False) if c.check == name), None)
+    if check is None or not np.isfinite(check.value):
+        return ""
+    return (f": {statistic} {check.value:.2f} [{check.ci_low:.2f}, {check.ci_high:.2f}], "
+            f"{check.verdict}")
+
+
+def agent_agreement(res: Any, path: Path) -> Path | None:
+    """Each encoder's mean SAC return (x) against its mean DDPG return (y), seeds' 95 %
+    t-intervals as bars, one panel per task of the joined other-agent run
+    (``res.robustness["other_agent_rl"]``) or of DDPG rows in the suite itself; the title
+    gives the Spearman check of ``robustness.csv``."""
+    rob = getattr(res, "robustness", None) or {}
+    rows = [*res.rl_rows, *(rob.get("other_agent_rl") or [])]
+    tasks = sorted({r["task"] for r in rows if r["agent"] == "ddpg"}
+                   & {r["task"] for r in rows if r["agent"] == "sac"})
+    if not tasks:
+        return None
+    families = encoder_families(res)
+    fig, axes = plt.subplots(1, len(tasks), squeeze=False, figsize=(5.2 * len(tasks), 4.6))
+    labels: list[tuple[Any, Any]] = []
+    for ax, task in zip(axes[0], tasks, strict=True):
+        steps = min(int(r["train_steps"]) for r in rows if r["task"] == task)
+        _paired_returns_panel(ax, _mean_returns(rows, task, "sac", steps),
+                              _mean_returns(rows, task, "ddpg", steps), families, labels)
+        note = _check_note(rob.get("checks"), f"SAC vs DDPG ranking {task}", "Spearman ρ")
+        ax.set_title(f"{task}{note}", fontsize=8)
+        ax.set_xlabel(f"SAC return at {steps} steps (mean over seeds)", fontsize=8)
+        ax.set_ylabel(f"DDPG return at {steps} steps", fontsize=8)
+    fig.tight_layout()
+    _place_labels(fig, labels)
+    family_legend(fig, {families.get(r["encoder"], "") for r in rows if r["agent"] == "ddpg"}
+                  - {""}, y=1.0)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def budget_agreement(res: Any, path: Path) -> Path | None:
     """Each encoder's mean return (seeds' 95 % t-interval as bars) at the suite's budget (x)
     against a longer budget (y), one panel per task × agent of the joined longer-budget run
@@ -556,31 +621,10 @@ def budget_agreement(res: Any, path: Path) -> Path | None:
             continue
         steps = max(int(r["train_steps"]) for r in longer
                     if r["task"] == task and r["agent"] == agent)
-        short = _mean_returns(res.rl_rows, task, agent, base)
-        far = _mean_returns(longer, task, agent, steps)
-        both = sorted(set(short) & set(far), key=lambda e: -far[e][0])
-        for enc in both:
-            (x, xlo, xhi), (y, ylo, yhi) = short[enc], far[enc]
-            color, marker = family_style(families.get(enc, ""))
-            ax.errorbar(x, y, xerr=[[x - xlo], [xhi - x]] if np.isfinite(xlo) else None,
-                        yerr=[[y - ylo], [yhi - y]] if np.isfinite(ylo) else None,
-                        fmt="none", ecolor=color, alpha=0.35, elinewidth=0.8)
-            ax.plot([x], [y], ls="none", marker=marker, color=color, ms=6, mec="white",
-                    mew=0.5, zorder=3)
-            labels.append((ax, ax.annotate(enc, (x, y), xytext=(5, -3),
-                                           textcoords="offset points", fontsize=7,
-                                           color=color)))
-        _fit_limits(ax, {e: (short[e][0], far[e][0]) for e in both})
-        vals = [v for e in both for v in (short[e][0], far[e][0])]
-        if vals:
-            ax.plot([min(vals), max(vals)], [min(vals), max(vals)], color="#999", lw=0.8,
-                    ls="--")
+        _paired_returns_panel(ax, _mean_returns(res.rl_rows, task, agent, base),
+                              _mean_returns(longer, task, agent, steps), families, labels)
         name = budget_check_name(agent, base, steps, task)
-        check = None if checks is None else next(
-            (c for c in checks.itertuples(index=False) if c.check == name), None)
-        note = (f": Kendall τ {check.value:.2f} [{check.ci_low:.2f}, {check.ci_high:.2f}], "
-                f"{check.verdict}" if check is not None and np.isfinite(check.value) else "")
-        ax.set_title(f"{task} {agent}{note}", fontsize=8)
+        ax.set_title(f"{task} {agent}{_check_note(checks, name, 'Kendall τ')}", fontsize=8)
         ax.set_xlabel(f"{agent} return at {base} steps (mean over seeds)", fontsize=8)
         ax.set_ylabel(f"{agent} return at {steps} steps", fontsize=8)
     fig.tight_layout()
@@ -603,6 +647,7 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
         "Predicted vs actual return (leave one family out)": (
             predicted, "predicted_vs_actual"),
         "Return at the suite's budget vs a longer one": (budget_agreement, "budget_agreement"),
+        "SAC vs DDPG return": (agent_agreement, "agent_agreement"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
         "Privileged agent learning curve": (privileged_curve, "privileged_curve"),

@@ -173,6 +173,8 @@ def test_agent_run_rows_join_robustness_csv(suite_file: Path, tmp_path: Path,
     assert row["statistic"] == "Spearman ρ of per-encoder mean returns"
     assert row["verdict"] == "inconclusive"  # 3 encoders: at least 4 needed
     assert "SAC's best metric under DDPG ToyReach-v0" in rows.index
+    assert (out / "figures" / "agent_agreement.png").is_file()
+    assert not (tmp_path / "lb" / "figures" / "agent_agreement.png").exists()
     assert not any("(" in c and "ddpg" in c for c in rows.index)  # no DDPG calibration rows
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["agent_run"]["agents"] == ["ddpg"]
