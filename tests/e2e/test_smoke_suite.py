@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import pandas as pd
 import pytest
 
@@ -38,13 +41,16 @@ def test_smoke_leaderboards_cover_every_pair(smoke_run: SuiteRun) -> None:
         assert fig in html
 
 
-def test_leaderboard_rebuilds_without_recomputing(smoke_run: SuiteRun) -> None:
-    store = Store(smoke_run.store)
+def test_leaderboard_rebuilds_without_recomputing(smoke_run: SuiteRun, tmp_path: Path) -> None:
+    # a private copy: tests in the other xdist process add stages to the shared smoke store
+    root = shutil.copytree(smoke_run.store, tmp_path / "store",
+                           ignore=shutil.ignore_patterns(".tmp"))
+    store = Store(root)
     before = {(a.stage, a.key): a.meta["created"] for st in ("metric", "rl", "encoder")
               for a in store.list(st)}
-    out2 = smoke_run.out.parent / "rebuilt"
-    proc, _ = run_repbench("leaderboard", "--suite", "smoke", "--store", str(smoke_run.store),
-                              "--out", str(out2))
+    out2 = tmp_path / "rebuilt"
+    proc, _ = run_repbench("leaderboard", "--suite", "smoke", "--store", str(root),
+                           "--out", str(out2))
     assert proc.returncode == 0, proc.stderr
     after = {(a.stage, a.key): a.meta["created"] for st in ("metric", "rl", "encoder")
              for a in store.list(st)}

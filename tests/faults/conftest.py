@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -46,6 +47,13 @@ def fault_suite(name: str, metrics: list[str], *, encoders: tuple[str, ...] = ("
     return text
 
 
+def _default_sigint() -> None:
+    """In the child before exec: SIGINT back to its default. A pytest started in the
+    background of a non-interactive shell (``cmd &``) inherits SIGINT ignored, and an ignored
+    SIGINT stays ignored across exec, so the Ctrl-C tests would send a signal nobody gets."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @dataclass
 class Cli:
     """Runs ``repbench`` in a subprocess with the fault plugins installed."""
@@ -63,7 +71,8 @@ class Cli:
         err = open(self.cwd / f"{name}.err", "wb")  # noqa: SIM115
         try:
             return subprocess.Popen(self.cmd(*args), cwd=self.cwd, env=self.env, stdout=out,
-                                    stderr=err, start_new_session=True)
+                                    stderr=err, start_new_session=True,
+                                    preexec_fn=_default_sigint)
         finally:
             out.close()
             err.close()
