@@ -176,9 +176,11 @@ def calibration_checks(values: Mapping[str, Mapping[str, float]],
         lp = p[p["encoder"].isin(learned)]
         rho = (float(stats.spearmanr(lp["predicted"], lp["actual"]).statistic)
                if len(lp) >= 3 and lp["predicted"].nunique() > 1 else float("nan"))
+        se_median = (float(np.median(se[np.isfinite(se)])) if np.isfinite(se).any()
+                     else float("nan"))  # one seed per encoder: no standard error
         detail = (f"{method.description}; nominal {nominal:.0%}; {covered}/{n} covered over "
                   f"{len(set(fam))} held-out {unit}; median half-width ±{width:.0f}; "
-                  f"held-out RMSE {rmse:.0f} vs median SE of a mean {np.nanmedian(se):.0f}; "
+                  f"held-out RMSE {rmse:.0f} vs median SE of a mean {se_median:.0f}; "
                   f"Spearman predicted vs actual within the learned encoders {rho:.2f}")
         checks.append(Check(f"out-of-sample coverage ({method.name}){' ' + where if where else ''}",
                             "coverage of held-out families", covered / n, float(ci.low),

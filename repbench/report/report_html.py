@@ -254,7 +254,7 @@ def _robustness_section(checks: pd.DataFrame | None) -> list[str]:
             "than ±150. Agreement rows (SAC vs DDPG, 10k vs a longer budget), where run: "
             "<b>holds</b> if the bootstrap interval (encoders and seeds resampled) lies above "
             "the threshold, <b>does not hold</b> if below.</p>",
-            _verdict_table(checks, "robustness", [("check", 240), ("statistic", 180)])]
+            _verdict_table(checks, "robustness-checks", [("check", 240), ("statistic", 180)])]
 
 
 def _partial_banner(res: Any) -> list[str]:
