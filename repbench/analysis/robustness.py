@@ -55,7 +55,7 @@ from repbench.analysis.calibration import (
 
 __all__ = ["AGENT_THRESHOLD", "BUDGET_THRESHOLD", "MAX_HALF_WIDTH", "Check",
            "best_metric_agreement", "calibration_checks", "choose_method", "coverage_verdict",
-           "heldout_predictions", "ranking_agreement", "robustness_table"]
+           "heldout_predictions", "ranking_agreement", "returns_by_encoder", "robustness_table"]
 
 ALPHA = 0.05
 #: An interval wider than ± this (return units) is not an answer, whatever it covers.
@@ -292,8 +292,9 @@ def robustness_table(checks: Sequence[Check]) -> pd.DataFrame:
     return pd.DataFrame([asdict(c) for c in checks], columns=cols)
 
 
-def _returns(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str,
-             train_steps: int | None = None) -> dict[str, list[float]]:
+def returns_by_encoder(rl_rows: Sequence[Mapping[str, Any]], task: str, agent: str,
+                       train_steps: int | None = None) -> dict[str, list[float]]:
+    """encoder → its RL returns over seeds for ``task`` × ``agent`` (at ``train_steps``)."""
     out: dict[str, list[float]] = {}
     for r in rl_rows:
         if r["task"] == task and r["agent"] == agent and (
@@ -362,7 +363,8 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
         agents = {a for t, a in both_pairs if t == task}
         if {"sac", "ddpg"} <= agents:
             checks.append(ranking_agreement(
-                _returns(both_rows, task, "sac"), _returns(both_rows, task, "ddpg"),
+                returns_by_encoder(both_rows, task, "sac"),
+                returns_by_encoder(both_rows, task, "ddpg"),
                 check=f"SAC vs DDPG ranking {task}", kind="spearman",
                 threshold=AGENT_THRESHOLD))
             if ranking is not None:
@@ -379,7 +381,8 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
             continue
         short, long = steps_label(base[0]), steps_label(steps[-1])
         checks.append(ranking_agreement(
-            _returns(rl_rows, task, agent, base[0]), _returns(longer, task, agent, steps[-1]),
+            returns_by_encoder(rl_rows, task, agent, base[0]),
+            returns_by_encoder(longer, task, agent, steps[-1]),
             check=budget_check_name(agent, base[0], steps[-1], task), kind="kendall",
             threshold=BUDGET_THRESHOLD))
         if ranking is not None and longer_ranking is not None:

@@ -18,7 +18,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -529,11 +529,10 @@ def predicted_vs_actual(res: Any, path: Path, ranking: pd.DataFrame) -> Path | N
 
 def _mean_returns(rows: Any, task: str, agent: str, steps: int
                   ) -> dict[str, tuple[float, float, float]]:
-    rets: dict[str, list[float]] = {}
-    for r in rows:
-        if r["task"] == task and r["agent"] == agent and int(r["train_steps"]) == steps:
-            rets.setdefault(r["encoder"], []).append(r["eval_return"])
-    return {e: mean_ci(v) for e, v in rets.items()}
+    """encoder → (mean, 95 % t-interval) of its returns over seeds."""
+    from repbench.analysis.robustness import returns_by_encoder
+
+    return {e: mean_ci(v) for e, v in returns_by_encoder(rows, task, agent, steps).items()}
 
 
 def _paired_returns_panel(ax: Any, xs: Mapping[str, tuple[float, float, float]],
@@ -569,6 +568,27 @@ def _check_note(checks: Any, name: str, statistic: str) -> str:
             f"{check.verdict}")
 
 
+def _agreement_figure(res: Any, path: Path, panels: Sequence[tuple[Any, ...]],
+                      encoders: set[str]) -> Path | None:
+    """One :func:`_paired_returns_panel` per ``(xs, ys, title, xlabel, ylabel)``, labels
+    placed, the legend of ``encoders``' families on top."""
+    if not panels:
+        return None
+    families = encoder_families(res)
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(5.2 * len(panels), 4.6))
+    labels: list[tuple[Any, Any]] = []
+    for ax, (xs, ys, title, xlabel, ylabel) in zip(axes[0], panels, strict=True):
+        _paired_returns_panel(ax, xs, ys, families, labels)
+        ax.set_title(title, fontsize=8)
+        ax.set_xlabel(xlabel, fontsize=8)
+        ax.set_ylabel(ylabel, fontsize=8)
+    fig.tight_layout()
+    _place_labels(fig, labels)
+    family_legend(fig, {families.get(e, "") for e in encoders} - {""}, y=1.0)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def agent_agreement(res: Any, path: Path) -> Path | None:
     """Each encoder's mean SAC return (x) against its mean DDPG return (y), seeds' 95 %
     t-intervals as bars, one panel per task of the joined other-agent run
@@ -578,25 +598,16 @@ def agent_agreement(res: Any, path: Path) -> Path | None:
     rows = [*res.rl_rows, *(rob.get("other_agent_rl") or [])]
     tasks = sorted({r["task"] for r in rows if r["agent"] == "ddpg"}
                    & {r["task"] for r in rows if r["agent"] == "sac"})
-    if not tasks:
-        return None
-    families = encoder_families(res)
-    fig, axes = plt.subplots(1, len(tasks), squeeze=False, figsize=(5.2 * len(tasks), 4.6))
-    labels: list[tuple[Any, Any]] = []
-    for ax, task in zip(axes[0], tasks, strict=True):
+    panels = []
+    for task in tasks:
         steps = min(int(r["train_steps"]) for r in rows if r["task"] == task)
-        _paired_returns_panel(ax, _mean_returns(rows, task, "sac", steps),
-                              _mean_returns(rows, task, "ddpg", steps), families, labels)
         note = _check_note(rob.get("checks"), f"SAC vs DDPG ranking {task}", "Spearman ρ")
-        ax.set_title(f"{task}{note}", fontsize=8)
-        ax.set_xlabel(f"SAC return at {steps} steps (mean over seeds)", fontsize=8)
-        ax.set_ylabel(f"DDPG return at {steps} steps", fontsize=8)
-    fig.tight_layout()
-    _place_labels(fig, labels)
-    family_legend(fig, {families.get(r["encoder"], "") for r in rows if r["agent"] == "ddpg"}
-                  - {""}, y=1.0)
-    fig.tight_layout()
-    return save_figure(fig, path)
+        panels.append((_mean_returns(rows, task, "sac", steps),
+                       _mean_returns(rows, task, "ddpg", steps), f"{task}{note}",
+                       f"SAC return at {steps} steps (mean over seeds)",
+                       f"DDPG return at {steps} steps"))
+    return _agreement_figure(res, path, panels,
+                             {r["encoder"] for r in rows if r["agent"] == "ddpg"})
 
 
 def budget_agreement(res: Any, path: Path) -> Path | None:
@@ -607,31 +618,22 @@ def budget_agreement(res: Any, path: Path) -> Path | None:
     from repbench.analysis.robustness import budget_check_name
 
     rob = getattr(res, "robustness", None) or {}
-    longer, checks = rob.get("longer_rl") or [], rob.get("checks")
-    panels = sorted({(r["task"], r["agent"]) for r in longer})
-    if not panels:
-        return None
-    families = encoder_families(res)
-    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(5.2 * len(panels), 4.6))
-    labels: list[tuple[Any, Any]] = []
-    for ax, (task, agent) in zip(axes[0], panels, strict=True):
+    longer = rob.get("longer_rl") or []
+    panels = []
+    for task, agent in sorted({(r["task"], r["agent"]) for r in longer}):
         base = min((int(r["train_steps"]) for r in res.rl_rows
                     if r["task"] == task and r["agent"] == agent), default=None)
         if base is None:
             continue
         steps = max(int(r["train_steps"]) for r in longer
                     if r["task"] == task and r["agent"] == agent)
-        _paired_returns_panel(ax, _mean_returns(res.rl_rows, task, agent, base),
-                              _mean_returns(longer, task, agent, steps), families, labels)
-        name = budget_check_name(agent, base, steps, task)
-        ax.set_title(f"{task} {agent}{_check_note(checks, name, 'Kendall τ')}", fontsize=8)
-        ax.set_xlabel(f"{agent} return at {base} steps (mean over seeds)", fontsize=8)
-        ax.set_ylabel(f"{agent} return at {steps} steps", fontsize=8)
-    fig.tight_layout()
-    _place_labels(fig, labels)
-    family_legend(fig, {families.get(r["encoder"], "") for r in longer} - {""}, y=1.0)
-    fig.tight_layout()
-    return save_figure(fig, path)
+        note = _check_note(rob.get("checks"), budget_check_name(agent, base, steps, task),
+                           "Kendall τ")
+        panels.append((_mean_returns(res.rl_rows, task, agent, base),
+                       _mean_returns(longer, task, agent, steps), f"{task} {agent}{note}",
+                       f"{agent} return at {base} steps (mean over seeds)",
+                       f"{agent} return at {steps} steps"))
+    return _agreement_figure(res, path, panels, {r["encoder"] for r in longer})
 
 
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
