@@ -83,13 +83,17 @@ def run(
     ray_address: Annotated[Optional[str], typer.Option(  # noqa: UP045
         "--ray-address", help="Join this Ray cluster (e.g. 'auto'); otherwise start a local "
         "Ray instance.")] = None,
+    no_rl: Annotated[bool, typer.Option(
+        "--no-rl", help="Every stage but the encoders' RL: metrics first (e.g. to commit a "
+        "return prediction before any RL record exists); rerun without it to add the RL.")
+    ] = False,
 ) -> None:
     """Run a suite: datasets → encoders → latents → metrics → RL → correlations →
     leaderboards. Finished stages are reused from the store, so an interrupted run resumes."""
     from repbench.pipeline.runner import run_suite
 
     result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
-                       ray_address=ray_address)
+                       ray_address=ray_address, no_rl=no_rl)
     typer.echo(f"leaderboards written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)

@@ -23,6 +23,7 @@ from repbench.pipeline.executors import RunReport, make_executor, run_stages
 from repbench.pipeline.plan import Plan, build_plan
 from repbench.pipeline.preflight import check_out_dir
 from repbench.pipeline.records import identity_key
+from repbench.pipeline.stages import RL
 from repbench.pipeline.store import Store
 from repbench.pipeline.suite import BUILTIN_SUITES, Suite, load_suite
 from repbench.report.leaderboard import write_leaderboards
@@ -44,8 +45,14 @@ def default_out_dir(suite_name: str) -> Path:
 
 def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | Path | None = None,
               executor: str = "local", workers: int | None = None,
-              ray_address: str | None = None, progress: bool = True) -> RunResult:
+              ray_address: str | None = None, progress: bool = True,
+              no_rl: bool = False) -> RunResult:
     """Run every missing stage of ``suite`` and write its leaderboards.
+
+    With ``no_rl`` every stage but the encoders' RL runs (datasets, the privileged agent that
+    collects the on-policy data, encoders, latents, metrics): the metrics of a task can then be
+    looked at, or a return predicted from them and committed, before any RL record exists; a
+    later run without ``no_rl`` on the same store adds the RL.
 
     Raises :class:`repbench.errors.RepbenchError` for a bad suite/plugin/parameter before any
     work starts. Stages that fail are reported; the leaderboards show what finished.
@@ -56,11 +63,12 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
     st = Store(store)
     plan = build_plan(s)
-    stages = plan.stages()
+    stages = [stage for stage in plan.stages() if not (no_rl and stage.kind == RL)]
     n_workers = workers or min(os.cpu_count() or 1, 8)
     ex = make_executor(executor, str(st.root), n_workers, ray_address)
     print(f"suite {s.name}: {len(stages)} stages ({len(s.tasks)} tasks × {len(s.encoders)} "
-          f"encoders × {len(s.metrics)} metrics, {len(s.agents)} agents × {len(s.seeds)} seeds); "
+          f"encoders × {len(s.metrics)} metrics, "
+          f"{'no RL' if no_rl else f'{len(s.agents)} agents × {len(s.seeds)} seeds'}); "
           f"store {st.root}; executor {executor} ({ex.capacity} workers)", flush=True)
     report = run_stages(stages, st, ex, progress=progress)
     print(f"stages: {report.summary()}", flush=True)

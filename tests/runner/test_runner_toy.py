@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from repbench.analysis.results import load_records
 from repbench.errors import ConfigError
 from repbench.metric import MetricResult, metric
 from repbench.pipeline.runner import rebuild_leaderboards, run_suite
@@ -76,6 +77,25 @@ def test_run_then_resume_recomputes_nothing(suite_file: Path, tmp_path: Path,
     pd.testing.assert_frame_equal(enc, pd.read_csv(tmp_path / "lb2" / "encoders.csv"))
     rebuild_leaderboards(suite_file, store=store, out=tmp_path / "lb3")
     pd.testing.assert_frame_equal(met, pd.read_csv(tmp_path / "lb3" / "metrics.csv"))
+
+
+def test_no_rl_runs_everything_but_rl_then_a_full_run_adds_only_rl(tmp_path: Path) -> None:
+    suite_file = tmp_path / "toy.toml"
+    suite_file.write_text(SUITE.replace('"oracle", "pca", "proprio_only"', '"pca"'))
+    store = tmp_path / "store"
+    first = run_suite(suite_file, store=store, out=tmp_path / "lb", workers=1, progress=False,
+                      no_rl=True)
+    assert not first.report.failed
+    # 1 random + 1 full-state + 1 on-policy + diagnostics + encoder, latents, 3 metrics
+    assert len(first.report.done) == 4 + 2 + 3
+    assert load_records(store, kinds=("rl",)) == []
+    enc = pd.read_csv(tmp_path / "lb" / "encoders.csv")
+    assert enc["ksg"].notna().all() and "sac_return" not in enc.columns
+    second = run_suite(suite_file, store=store, out=tmp_path / "lb2", workers=1,
+                       progress=False)
+    assert len(second.report.done) == 2 and len(second.report.cached) == 4 + 2 + 3
+    assert len(load_records(store, kinds=("rl",))) == 2
+    assert (pd.read_csv(tmp_path / "lb2" / "encoders.csv")["sac_seeds"] == 2).all()
 
 
 def test_a_failing_stage_is_isolated(suite_file: Path, tmp_path: Path, store: Path) -> None:
