@@ -115,6 +115,10 @@ def leaderboard(
     agent_run: Annotated[Optional[Path], typer.Option(  # noqa: UP045
         "--agent-run", help="Leaderboard folder of another agent on the same tasks and budget "
         "(e.g. leaderboards/quick/ddpg): adds the SAC-vs-DDPG rows to robustness.csv.")] = None,
+    predictions: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--predictions", help="Folder of pre-registered cross-task predictions "
+        "(<task id>.csv, e.g. leaderboards/quick/predictions): scores them in "
+        "robustness.csv.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.pipeline.runner import rebuild_leaderboards
@@ -122,7 +126,7 @@ def leaderboard(
     if records is not None and not records.is_dir():
         raise RepbenchError(f"records folder {records} does not exist")
     out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records, longer=longer,
-                                   agent_run=agent_run)
+                                   agent_run=agent_run, predictions=predictions)
     typer.echo(f"leaderboards written to {out_dir}")
 
 

@@ -27,6 +27,11 @@ before the data it judges, as :mod:`repbench.analysis.claims` does for the paper
   within-learned Spearman ρ under the first setting; under the second, **holds** if it is the
   best there too or its interval's high end reaches the second setting's best ρ (the two are
   not told apart), **does not hold** otherwise.
+* **Across tasks** (suites with several tasks): the first task's encoder ranking against each
+  other task's (Kendall τ, :data:`TASK_THRESHOLD`: do the tasks rank the encoders alike at
+  all?) and the first task's best metric on each other task (the rule above). The
+  pre-registered predictions of a new task from the first task's calibration are scored in
+  :mod:`repbench.analysis.transfer`.
 """
 
 from __future__ import annotations
@@ -53,7 +58,7 @@ from repbench.analysis.calibration import (
     held_out_errors,
 )
 
-__all__ = ["AGENT_THRESHOLD", "BUDGET_THRESHOLD", "MAX_HALF_WIDTH", "Check",
+__all__ = ["AGENT_THRESHOLD", "BUDGET_THRESHOLD", "MAX_HALF_WIDTH", "TASK_THRESHOLD", "Check",
            "best_metric_agreement", "calibration_checks", "choose_method", "coverage_verdict",
            "heldout_predictions", "ranking_agreement", "returns_by_encoder", "robustness_table"]
 
@@ -64,6 +69,8 @@ MAX_HALF_WIDTH = 150.0
 AGENT_THRESHOLD = 0.5
 #: The 10k ranking is the longer budget's when Kendall τ's interval lies above this.
 BUDGET_THRESHOLD = 0.4
+#: Two tasks rank the encoders alike (at all) when Kendall τ's interval lies above this.
+TASK_THRESHOLD = 0.0
 HOLDS, TOO_WIDE, FAILS, INCONCLUSIVE = "holds", "holds, too wide", "does not hold", \
     "inconclusive"
 
@@ -286,6 +293,30 @@ def best_metric_agreement(first: pd.DataFrame, second: pd.DataFrame, *, check: s
                  float(r["spearman_learned_ci_high"]), HOLDS if holds else FAILS, detail)
 
 
+def task_checks(rl_rows: Sequence[Mapping[str, Any]], ranking: pd.DataFrame | None
+                ) -> list[Check]:
+    """The across-tasks rows: per agent, the first task (in ``rl_rows``' order) against each
+    other task — the encoder ranking (Kendall τ) and the first task's best metric."""
+    out: list[Check] = []
+    tasks = list(dict.fromkeys(r["task"] for r in rl_rows))
+    for agent in dict.fromkeys(r["agent"] for r in rl_rows):
+        first = tasks[0] if tasks else None
+        for other in tasks[1:]:
+            a = returns_by_encoder(rl_rows, first, agent)
+            b = returns_by_encoder(rl_rows, other, agent)
+            if not a or not b:
+                continue
+            out.append(ranking_agreement(
+                a, b, check=f"{agent.upper()} ranking {first} vs {other}", kind="kendall",
+                threshold=TASK_THRESHOLD))
+            if ranking is not None:
+                out.append(best_metric_agreement(
+                    _board(ranking, first, agent), _board(ranking, other, agent),
+                    check=f"{first}'s best metric on {other} ({agent.upper()})", first_label=first,
+                    second_label=other))
+    return out
+
+
 def robustness_table(checks: Sequence[Check]) -> pd.DataFrame:
     """``robustness.csv``'s rows."""
     cols = [f for f in Check.__dataclass_fields__]
@@ -390,6 +421,7 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
                 _board(ranking, task, agent), _board(longer_ranking, task, agent),
                 check=f"{short} best metric at {long} {task} {agent}", first_label=short,
                 second_label=long))
+    checks += task_checks(rl_rows, ranking)
     return checks, (pd.concat(frames, ignore_index=True) if frames else pd.DataFrame())
 
 

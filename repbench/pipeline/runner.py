@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
+
 from repbench.analysis.results import (
     Results,
     build_results,
@@ -264,7 +266,8 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None,
                          records: str | Path | None = None,
                          longer: str | Path | None = None,
-                         agent_run: str | Path | None = None) -> Path:
+                         agent_run: str | Path | None = None,
+                         predictions: str | Path | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
     With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``) they are
@@ -272,7 +275,10 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     leaderboard folder of the same task × agent trained for longer, e.g.
     ``leaderboards/quick/longer``) ``robustness.csv`` gets the budget rows
     (:func:`longer_results`); with ``agent_run`` (another agent at this budget, e.g.
-    ``leaderboards/quick/ddpg``) the agent-agreement rows (:func:`agent_run_results`).
+    ``leaderboards/quick/ddpg``) the agent-agreement rows (:func:`agent_run_results`); with
+    ``predictions`` (a folder of pre-registered ``<task id>.csv``, e.g.
+    ``leaderboards/quick/predictions``) the cross-task prediction rows
+    (:func:`load_predictions`).
     """
     s = load_suite(suite)
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
@@ -295,4 +301,31 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     if agent_run is not None:
         other = agent_run_results(agent_run, results)
         results.provenance["agent_run"] = _companion_provenance(agent_run, other)
-    return write_leaderboards(results, out_dir, longer=extra, agent_run=other)
+    preds = load_predictions(predictions, results) if predictions is not None else []
+    return write_leaderboards(results, out_dir, longer=extra, agent_run=other,
+                              predictions=preds)
+
+
+def load_predictions(folder: str | Path, results: Results) -> list[pd.DataFrame]:
+    """The pre-registered predictions (``<task id>.csv``,
+    :data:`repbench.analysis.transfer.COLUMNS`) in ``folder`` of the tasks ``results`` has;
+    one-line errors for a folder without any or a file without the columns."""
+    from repbench.analysis.transfer import COLUMNS
+
+    path = Path(folder)
+    files = sorted(path.glob("*.csv")) if path.is_dir() else []
+    if not files:
+        raise ConfigError(f"--predictions {folder}: no <task id>.csv files there (e.g. "
+                          "leaderboards/quick/predictions)")
+    tasks = {r["task"] for r in results.metric_rows}
+    out = []
+    for f in files:
+        table = pd.read_csv(f)
+        lacking = [c for c in COLUMNS if c not in table.columns]
+        if lacking or table.empty:
+            raise ConfigError(f"--predictions: {f} is not a prediction table (missing "
+                              f"{', '.join(lacking) or 'rows'}); make it with "
+                              "leaderboards/quick/predictions/predict.py")
+        if table["task"].iloc[0] in tasks:
+            out.append(table)
+    return out

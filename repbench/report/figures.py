@@ -537,10 +537,11 @@ def _mean_returns(rows: Any, task: str, agent: str, steps: int
 
 def _paired_returns_panel(ax: Any, xs: Mapping[str, tuple[float, float, float]],
                           ys: Mapping[str, tuple[float, float, float]],
-                          families: Mapping[str, str], labels: list[tuple[Any, Any]]) -> None:
+                          families: Mapping[str, str], labels: list[tuple[Any, Any]],
+                          diagonal: bool = True) -> None:
     """One encoder per point at (mean return under x, under y), the seeds' intervals as bars,
     each named (its label appended to ``labels`` for :func:`_place_labels`), the diagonal
-    dashed."""
+    dashed (``diagonal``: the two axes are on one scale)."""
     both = sorted(set(xs) & set(ys), key=lambda e: -ys[e][0])
     for enc in both:
         (x, xlo, xhi), (y, ylo, yhi) = xs[enc], ys[enc]
@@ -554,7 +555,7 @@ def _paired_returns_panel(ax: Any, xs: Mapping[str, tuple[float, float, float]],
                                        textcoords="offset points", fontsize=7, color=color)))
     _fit_limits(ax, {e: (xs[e][0], ys[e][0]) for e in both})
     vals = [v for e in both for v in (xs[e][0], ys[e][0])]
-    if vals:
+    if vals and diagonal:
         ax.plot([min(vals), max(vals)], [min(vals), max(vals)], color="#999", lw=0.8, ls="--")
 
 
@@ -569,7 +570,7 @@ def _check_note(checks: Any, name: str, statistic: str) -> str:
 
 
 def _agreement_figure(res: Any, path: Path, panels: Sequence[tuple[Any, ...]],
-                      encoders: set[str]) -> Path | None:
+                      encoders: set[str], diagonal: bool = True) -> Path | None:
     """One :func:`_paired_returns_panel` per ``(xs, ys, title, xlabel, ylabel)``, labels
     placed, the legend of ``encoders``' families on top."""
     if not panels:
@@ -578,7 +579,7 @@ def _agreement_figure(res: Any, path: Path, panels: Sequence[tuple[Any, ...]],
     fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(5.2 * len(panels), 4.6))
     labels: list[tuple[Any, Any]] = []
     for ax, (xs, ys, title, xlabel, ylabel) in zip(axes[0], panels, strict=True):
-        _paired_returns_panel(ax, xs, ys, families, labels)
+        _paired_returns_panel(ax, xs, ys, families, labels, diagonal)
         ax.set_title(title, fontsize=8)
         ax.set_xlabel(xlabel, fontsize=8)
         ax.set_ylabel(ylabel, fontsize=8)
@@ -636,6 +637,93 @@ def budget_agreement(res: Any, path: Path) -> Path | None:
     return _agreement_figure(res, path, panels, {r["encoder"] for r in longer})
 
 
+def _tasks(res: Any) -> list[str]:
+    """The tasks with RL rows, in the suite's order."""
+    return list(dict.fromkeys(r["task"] for r in res.rl_rows))
+
+
+def task_agreement(res: Any, path: Path) -> Path | None:
+    """Each encoder's mean return on the first task (x) against another task (y), seeds'
+    95 % t-intervals as bars, one panel per other task × agent (no diagonal: two tasks' returns
+    are not on one scale); the title gives the Kendall τ check of ``robustness.csv``."""
+    rob = getattr(res, "robustness", None) or {}
+    tasks = _tasks(res)
+    panels = []
+    for agent in dict.fromkeys(r["agent"] for r in res.rl_rows):
+        for other in tasks[1:]:
+            first = tasks[0]
+            steps = {t: min(int(r["train_steps"]) for r in res.rl_rows if r["task"] == t)
+                     for t in (first, other)}
+            note = _check_note(rob.get("checks"),
+                               f"{agent.upper()} ranking {first} vs {other}", "Kendall τ")
+            panels.append((_mean_returns(res.rl_rows, first, agent, steps[first]),
+                           _mean_returns(res.rl_rows, other, agent, steps[other]),
+                           f"{agent} {first} vs {other}{note}",
+                           f"{first} return (mean over seeds)", f"{other} return"))
+    return _agreement_figure(res, path, panels, {r["encoder"] for r in res.rl_rows},
+                             diagonal=False)
+
+
+def cross_task_predictions(res: Any, path: Path) -> Path | None:
+    """The pre-registered cross-task predictions (:mod:`repbench.analysis.transfer`) against
+    the actual mean returns: x the stated prediction with its interval, y the mean over seeds
+    with its 95 % t-interval, one panel per predicted task, the diagonal dashed; the title gives
+    the ranking test of ``robustness.csv``."""
+    rob = getattr(res, "robustness", None) or {}
+    tables = rob.get("predictions") or {}
+    panels = []
+    for (task, agent), table in tables.items():
+        steps = min(int(r["train_steps"]) for r in res.rl_rows if r["task"] == task)
+        actual = _mean_returns(res.rl_rows, task, agent, steps)
+        xs = {r.encoder: (r.predicted_return, r.ci_low, r.ci_high)
+              for r in table.itertuples(index=False) if r.encoder in actual}
+        source = table["source_task"].iloc[0]
+        note = _check_note(rob.get("checks"), f"{source} calibration predicts {task} {agent}",
+                           "ρ")
+        panels.append((xs, actual, f"{task} {agent}, predicted from {source}{note}",
+                       f"predicted before any RL record ({table['metric'].iloc[0]}, "
+                       f"{source}'s line)", f"{agent} return (mean over seeds)"))
+    return _agreement_figure(res, path, panels, {e for t in tables.values()
+                                                 for e in t["encoder"]})
+
+
+def cross_task_metrics(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
+    """Each metric's within-learned Spearman ρ with return (95 % interval as a bar), one
+    marker per task, metrics in the first task's order: which metric predicts, task by task."""
+    if ranking is None or ranking.empty or "spearman_learned" not in ranking.columns:
+        return None
+    tasks = [t for t in _tasks(res) if t in set(ranking["task"])]
+    if len(tasks) < 2:
+        return None
+    agents = list(dict.fromkeys(ranking["agent"]))
+    fig, axes = plt.subplots(1, len(agents), squeeze=False,
+                             figsize=(6.0 * len(agents), 0.32 * ranking["metric"].nunique() + 1.4))
+    colors = _colors(tasks)
+    for ax, agent in zip(axes[0], agents, strict=True):
+        board = ranking[ranking["agent"] == agent]
+        order = list(board[board["task"] == tasks[0]].sort_values(
+            "spearman_learned")["metric"])
+        order += [m for m in dict.fromkeys(board["metric"]) if m not in order]
+        y = {m: i for i, m in enumerate(order)}
+        for k, task in enumerate(tasks):
+            rows = board[board["task"] == task]
+            off = (k - (len(tasks) - 1) / 2) * 0.22
+            for r in rows.itertuples(index=False):
+                yy = y[r.metric] + off
+                ax.plot([r.spearman_learned_ci_low, r.spearman_learned_ci_high], [yy, yy],
+                        color=colors[task], lw=1.2, alpha=0.5)
+                ax.plot([r.spearman_learned], [yy], "o", color=colors[task], ms=5,
+                        label=task if r.metric == rows["metric"].iloc[0] else None)
+        ax.axvline(0, color="#999", lw=0.8, ls="--")
+        ax.set_yticks(range(len(order)), order, fontsize=8)
+        ax.set_xlim(-1.05, 1.05)
+        ax.set_xlabel(f"within-learned Spearman ρ with {agent} return (95 % interval)",
+                      fontsize=8)
+        ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str, Path]:
     """Render every figure that the results support; name → PNG path."""
 
@@ -645,11 +733,18 @@ def make_figures(res: Any, metrics_df: pd.DataFrame, out_dir: Path) -> dict[str,
     def predicted(r: Any, p: Path) -> Path | None:
         return predicted_vs_actual(r, p, metrics_df)
 
+    def metrics_by_task(r: Any, p: Path) -> Path | None:
+        return cross_task_metrics(r, p, metrics_df)
+
     makers = {
         "Predicted vs actual return (leave one family out)": (
             predicted, "predicted_vs_actual"),
         "Return at the suite's budget vs a longer one": (budget_agreement, "budget_agreement"),
         "SAC vs DDPG return": (agent_agreement, "agent_agreement"),
+        "Which metric predicts return, task by task": (metrics_by_task, "cross_task_metrics"),
+        "Encoder returns, task against task": (task_agreement, "task_agreement"),
+        "Pre-registered cross-task predictions vs actual return": (
+            cross_task_predictions, "cross_task_predictions"),
         "Metric vs RL return (paper Fig. 3a, 4, 6b)": (scatter, "metric_vs_return"),
         "Learning curves (Fig. 3b)": (learning_curves, "learning_curves"),
         "Privileged agent learning curve": (privileged_curve, "privileged_curve"),

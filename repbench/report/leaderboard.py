@@ -23,6 +23,7 @@ them by identity, :mod:`repbench.analysis.results`); nothing here reads a plan o
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -171,7 +172,8 @@ def paper_claims(res: Results, ranking: pd.DataFrame) -> pd.DataFrame:
 
 
 def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | None = None,
-                      agent_run: Results | None = None) -> pd.DataFrame:
+                      agent_run: Results | None = None,
+                      predictions: Sequence[pd.DataFrame] = ()) -> pd.DataFrame:
     """The "Does the answer hold?" checks (:func:`repbench.analysis.robustness.check_results`)
     as ``robustness.csv``'s table; the held-out predictions behind them go to
     ``res.robustness["heldout"]`` for the predicted-vs-actual figure.
@@ -180,8 +182,11 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
     records, :func:`repbench.pipeline.runner.longer_results`): the 10k-vs-longer rows.
     ``agent_run``: another agent's results at this budget
     (:func:`repbench.pipeline.runner.agent_run_results`): the SAC-vs-DDPG rows.
+    ``predictions``: pre-registered cross-task predictions (``predictions/<task>.csv``,
+    :mod:`repbench.analysis.transfer`); each one whose task × agent has RL rows is scored.
     """
     from repbench.analysis.robustness import check_results, robustness_table
+    from repbench.analysis.transfer import score_predictions
     from repbench.report.families import encoder_families
 
     longer_rows = longer.rl_rows if longer is not None else ()
@@ -191,21 +196,30 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
     checks, heldout = check_results(res.metric_rows, res.rl_rows, encoder_families(res), ranking,
                                     longer=longer_rows, longer_ranking=longer_ranking,
                                     other_agent=other_rows, other_ranking=other_ranking)
+    scored: dict[tuple[str, str], pd.DataFrame] = {}
+    have_rl = {(r["task"], r["agent"]) for r in res.rl_rows}
+    for pred in predictions:
+        key = (str(pred["task"].iloc[0]), str(pred["agent"].iloc[0]))
+        if key in have_rl:
+            check, scored[key] = score_predictions(pred, res.rl_rows)
+            checks.append(check)
     table = robustness_table(checks)
     res.robustness = {"checks": table, "heldout": heldout, "longer_rl": list(longer_rows),
-                      "other_agent_rl": list(other_rows)}
+                      "other_agent_rl": list(other_rows), "predictions": scored}
     return table
 
 
 def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = None,
-                       agent_run: Results | None = None) -> Path:
+                       agent_run: Results | None = None,
+                       predictions: Sequence[pd.DataFrame] = ()) -> Path:
     """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``robustness.csv``,
     ``provenance.json``, figures,
     ``index.html`` and the records they were computed from (``records/``).
 
     ``longer`` (the same task × agent at a longer budget) adds the budget rows to
     ``robustness.csv``, ``agent_run`` (another agent at this budget) the agent-agreement rows;
-    their records stay where they are (their folders go in the provenance).
+    their records stay where they are (their folders go in the provenance); ``predictions``
+    (pre-registered cross-task predictions) are scored in ``robustness.csv``.
     """
     from repbench.report.figures import make_figures
     from repbench.report.report_html import render_html
@@ -218,7 +232,7 @@ def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = Non
         met = ranking.merge(met, on=["task", "agent", "metric"], how="left")
         enc = add_loo_predicted_return(enc, ranking, res.loo_predictions)
     claims = paper_claims(res, ranking)
-    robustness = robustness_checks(res, ranking, longer, agent_run)
+    robustness = robustness_checks(res, ranking, longer, agent_run, predictions)
     enc.to_csv(out_dir / "encoders.csv", index=False, float_format="%.6g")
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     claims.to_csv(out_dir / "claims.csv", index=False, float_format="%.6g")

@@ -253,8 +253,54 @@ def _robustness_section(checks: pd.DataFrame | None) -> list[str]:
             "p &lt; 0.05); <b>holds, too wide</b> = covers, but the median interval is wider "
             "than ±150. Agreement rows (SAC vs DDPG, 10k vs a longer budget), where run: "
             "<b>holds</b> if the bootstrap interval (encoders and seeds resampled) lies above "
-            "the threshold, <b>does not hold</b> if below.</p>",
+            "the threshold, <b>does not hold</b> if below. Across tasks, where a suite has "
+            "several: the first task's encoder ranking against each other task's (Kendall τ, "
+            "holds if its interval lies above 0), the first task's best metric on the other, and "
+            "each "
+            "pre-registered cross-task prediction (Spearman ρ of predicted vs actual over the "
+            "learned encoders: holds if its interval lies above 0).</p>",
             _verdict_table(checks, "robustness-checks", [("check", 240), ("statistic", 180)])]
+
+
+#: The modality ablations shown side by side across tasks: all inputs, image only, F/T and
+#: proprioception only, then the blind and untrained baselines and the information ceiling.
+ABLATIONS = ("vae_lowkl", "vae_lowkl_image", "vae_lowkl_ft_proprio", "proprio_only", "random",
+             "oracle_task")
+
+
+def _cross_task_section(encoders_df: pd.DataFrame) -> list[str]:
+    """Across tasks (suites with several tasks): the modality ablations' returns side by
+    side; the checks themselves are rows of the robustness table."""
+    if "task" not in encoders_df.columns or encoders_df["task"].nunique() < 2:
+        return []
+    tasks = list(dict.fromkeys(encoders_df["task"]))
+    agents = [c[: -len("_return")] for c in encoders_df.columns
+              if c.endswith("_return") and not c.endswith("predicted_return")]
+    rows = []
+    for enc in ABLATIONS:
+        cells = []
+        for task in tasks:
+            r = encoders_df[(encoders_df["task"] == task) & (encoders_df["encoder"] == enc)]
+            for a in agents:
+                if r.empty or pd.isna(r[f"{a}_return"].iloc[0]):
+                    cells.append("<td>–</td>")
+                    continue
+                x = r.iloc[0]
+                cells.append(f"<td>{_fmt(x[f'{a}_return'])} <span class='ci'>["
+                             f"{_fmt(x[f'{a}_return_ci_low'])}, {_fmt(x[f'{a}_return_ci_high'])}"
+                             f"]</span> · {x.get(f'{a}_success', float('nan')):.0%}</td>")
+        rows.append(f"<tr><td class='txt'>{html.escape(enc)}</td>{''.join(cells)}</tr>")
+    head = "".join(f"<th>{html.escape(t)} {html.escape(a)}</th>" for t in tasks for a in agents)
+    return ["<h2 id='across-tasks'>Across tasks</h2><p class='note'>The first task against "
+            "each other one: whether they rank the encoders alike (Kendall τ), whether the "
+            "first task's best metric is best on the other, and, where a task has a "
+            "prediction committed before its RL ran, how the first task's calibration "
+            "predicted it — rows of the table above, figures below. The modality ablations "
+            "side by side (mean return over seeds [95% interval] · success rate): on a task "
+            "where what varies is felt, not seen, F/T + proprioception should do well against "
+            "the image alone.</p>",
+            f"<table id='ablations'><thead><tr><th class='txt'>encoder</th>{head}</tr></thead>"
+            f"<tbody>{''.join(rows)}</tbody></table>"]
 
 
 def _partial_banner(res: Any) -> list[str]:
@@ -306,6 +352,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         else "<p>No correlations yet.</p>",
         *_claims_section(claims),
         *_robustness_section((getattr(res, "robustness", None) or {}).get("checks")),
+        *_cross_task_section(encoders_df),
         "<h2>Which metric predicts RL performance?</h2>",
         "<p class='note'>Correlation across encoders between each metric and the final "
         "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "

@@ -16,6 +16,7 @@ from repbench.analysis.robustness import (
     coverage_verdict,
     heldout_predictions,
     ranking_agreement,
+    task_checks,
 )
 
 
@@ -157,6 +158,29 @@ def test_check_results_adds_agent_and_budget_rows() -> None:
     assert by["SAC 10k vs 30k ranking T"].verdict == "holds"
     assert by["out-of-sample coverage (family_cv_1metric_80) T sac"].verdict == "holds"
     assert {"task", "agent", "predicted", "half_width", "covered"} <= set(pred.columns)
+
+
+def test_task_checks_compare_the_first_task_with_each_other() -> None:
+    rng = np.random.default_rng(3)
+    n = 10
+    m = np.linspace(0, 1, n)
+    sign = {"A": 1.0, "B": 1.0, "C": -1.0}  # B ranks the encoders as A does, C reverses them
+    rl = [{"task": t, "encoder": f"e{i}", "agent": "sac", "seed": s, "train_steps": 10_000,
+           "eval_return": float(100 + 400 * sign[t] * m[i] + rng.normal(0, 5))}
+          for t in ("A", "B", "C") for i in range(n) for s in range(3)]
+    ranking = pd.concat([_board([("x", 0.9, 0.7, 0.97), ("y", 0.3, -0.2, 0.6)]).assign(task=t,
+                                                                                       agent="sac")
+                         for t in ("A", "B")]
+                        + [_board([("x", 0.1, -0.3, 0.5), ("y", 0.8, 0.6, 0.9)]).assign(
+                            task="C", agent="sac")], ignore_index=True)
+    by = {c.check: c for c in task_checks(rl, ranking)}
+    assert set(by) == {"SAC ranking A vs B", "SAC ranking A vs C", "A's best metric on B (SAC)",
+                       "A's best metric on C (SAC)"}
+    assert by["SAC ranking A vs B"].verdict == "holds" and by["SAC ranking A vs B"].value > 0.9
+    assert by["SAC ranking A vs C"].verdict == "does not hold"
+    assert by["A's best metric on B (SAC)"].verdict == "holds"
+    assert by["A's best metric on C (SAC)"].verdict == "does not hold"
+    assert task_checks([r for r in rl if r["task"] == "A"], ranking) == []  # one task: none
 
 
 def test_predict_return_states_its_method() -> None:

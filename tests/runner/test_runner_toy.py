@@ -9,11 +9,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from repbench.analysis.results import load_records
+from repbench.analysis.results import build_results, load_records
+from repbench.analysis.robustness import validated_method
+from repbench.analysis.transfer import predict_task
 from repbench.errors import ConfigError
 from repbench.metric import MetricResult, metric
 from repbench.pipeline.runner import rebuild_leaderboards, run_suite
 from repbench.registry import metrics
+from repbench.report.families import encoder_families
+from repbench.report.leaderboard import write_leaderboards
 
 SUITE = """
 name = "toy"
@@ -77,6 +81,39 @@ def test_run_then_resume_recomputes_nothing(suite_file: Path, tmp_path: Path,
     pd.testing.assert_frame_equal(enc, pd.read_csv(tmp_path / "lb2" / "encoders.csv"))
     rebuild_leaderboards(suite_file, store=store, out=tmp_path / "lb3")
     pd.testing.assert_frame_equal(met, pd.read_csv(tmp_path / "lb3" / "metrics.csv"))
+
+
+def test_two_tasks_get_the_across_tasks_rows_figures_and_section(store: Path,
+                                                                  tmp_path: Path) -> None:
+    """The toy run's records and a copy of them as a second task (returns reversed): the
+    cross-task rows, the prediction scored, the three figures and the page section (the copy
+    sorts after the first task: without a suite, tasks are in name order)."""
+    recs = load_records(store)
+    assert recs, "the module's first test fills the store"
+    second = []
+    for r in recs:
+        c = json.loads(json.dumps(r))
+        c["task"]["name"] = "ToyReach-v1"
+        if c["kind"] == "rl":
+            c["values"]["eval_return"] = -float(c["values"]["eval_return"])
+        second.append(c)
+    res = build_results(recs + second)
+    pred = predict_task(res.metric_rows, res.rl_rows,
+                        [m for m in res.metric_rows if m["task"] == "ToyReach-v1"],
+                        source_task="ToyReach-v0", target_task="ToyReach-v1", agent="sac",
+                        families=encoder_families(res), ceiling_source=1.0,
+                        ceiling_target=1.0, choose=validated_method)
+    out = write_leaderboards(res, tmp_path / "lb", predictions=[pred])
+    checks = pd.read_csv(out / "robustness.csv").set_index("check")
+    # 3 toy encoders: too few for a ranking statistic (known answers: test_robustness.py)
+    assert checks.loc["SAC ranking ToyReach-v0 vs ToyReach-v1", "verdict"] == "inconclusive"
+    assert "3 encoders in both" in checks.loc["SAC ranking ToyReach-v0 vs ToyReach-v1", "detail"]
+    assert "ToyReach-v0's best metric on ToyReach-v1 (SAC)" in checks.index
+    assert "ToyReach-v0 calibration predicts ToyReach-v1 sac" in checks.index
+    for stem in ("cross_task_metrics", "task_agreement", "cross_task_predictions"):
+        assert (out / "figures" / f"{stem}.png").stat().st_size > 2_000  # palette PNGs
+    page = (out / "index.html").read_text()
+    assert "id='across-tasks'" in page and "id='ablations'" in page
 
 
 def test_no_rl_runs_everything_but_rl_then_a_full_run_adds_only_rl(tmp_path: Path) -> None:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -13,7 +16,8 @@ from repbench.analysis.transfer import (
     privileged_return,
     score_predictions,
 )
-from repbench.errors import DataError
+from repbench.errors import ConfigError, DataError
+from repbench.pipeline.runner import load_predictions
 
 SOURCE, TARGET, AGENT = "Source-v0", "Target-v0", "sac"
 # 3 families of 3 learned encoders + 2 baselines; the source return is 100 + 50 m exactly and
@@ -114,3 +118,22 @@ def test_target_without_metrics_is_a_one_line_error():
         predict_task(m_rows, rl_rows, [], source_task=SOURCE, target_task=TARGET, agent=AGENT,
                      families=ENCODERS, ceiling_source=1.0, ceiling_target=1.0,
                      choose=_default)
+
+
+def test_load_predictions_errors_and_task_filter(tmp_path: Path) -> None:
+    res = SimpleNamespace(metric_rows=[{"task": TARGET}])
+    with pytest.raises(ConfigError, match=r"no <task id>\.csv files"):
+        load_predictions(tmp_path, res)
+    (tmp_path / "bad.csv").write_text("task,encoder\nTarget-v0,a\n")
+    with pytest.raises(ConfigError, match=r"bad\.csv is not a prediction table"):
+        load_predictions(tmp_path, res)
+    (tmp_path / "bad.csv").unlink()
+    m_rows, rl_rows = _source(SOURCE_M)
+    for task in (TARGET, "Other-v0"):
+        pred = predict_task(m_rows, rl_rows, [dict(r, task=task) for r in _target(SOURCE_M)],
+                            source_task=SOURCE, target_task=task, agent=AGENT,
+                            families=ENCODERS, ceiling_source=1.0, ceiling_target=1.0,
+                            choose=_default)
+        pred.to_csv(tmp_path / f"{task}.csv", index=False)
+    (only,) = load_predictions(tmp_path, res)  # Other-v0 is not a task of the results
+    assert set(only["task"]) == {TARGET}
