@@ -105,9 +105,10 @@ def leaderboard(
                                        "collect.")] = "smoke",
     store: StoreOpt = None,
     out: OutOpt = None,
-    records: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+    records: Annotated[Optional[list[Path]], typer.Option(  # noqa: UP045
         "--records", help="Build from this folder of result records (e.g. "
-        "leaderboards/smoke/records) instead of the store.")] = None,
+        "leaderboards/smoke/records) instead of the store; repeat it for several (e.g. one "
+        "per task).")] = None,
     longer: Annotated[Optional[Path], typer.Option(  # noqa: UP045
         "--longer", help="Leaderboard folder of the same task x agent trained for longer "
         "(e.g. leaderboards/quick/longer): adds the 10k-vs-longer rows to "
@@ -123,10 +124,11 @@ def leaderboard(
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.pipeline.runner import rebuild_leaderboards
 
-    if records is not None and not records.is_dir():
-        raise RepbenchError(f"records folder {records} does not exist")
-    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records, longer=longer,
-                                   agent_run=agent_run, predictions=predictions)
+    for folder in records or []:
+        if not folder.is_dir():
+            raise RepbenchError(f"records folder {folder} does not exist")
+    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records or None,
+                                   longer=longer, agent_run=agent_run, predictions=predictions)
     typer.echo(f"leaderboards written to {out_dir}")
 
 

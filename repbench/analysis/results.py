@@ -190,6 +190,7 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     installed = installed or {}
     records = sorted(records, key=_order_by(suite))
     res.records = list(records)
+    multi_task = len({r["task"]["name"] for r in records}) > 1
     directions: dict[str, bool] = {}
     for r in records:
         task = r["task"]["name"]
@@ -208,10 +209,11 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
                                      "best_epoch": values.get("best_epoch"),
                                      "epochs_run": values.get("epochs_run"),
                                      "heldout_loss": values.get("heldout_loss")})
+            label = f"{enc} {task}" if multi_task else enc  # one figure per task × encoder
             for stem, png in (values.get("files") or {}).items():
-                path = _encoder_figure(r, stem, enc, png)
+                path = _encoder_figure(r, stem, label, enc, png)
                 if path is not None:
-                    res.figures_from_store[f"{stem} {enc}"] = path
+                    res.figures_from_store[f"{stem} {label}"] = path
         elif kind == "metric":
             name = r["metric"]["name"]
             directions[name] = bool(values.get("higher_is_better", True))
@@ -276,15 +278,19 @@ def _provenance(suite: Any, records: list[Mapping[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _encoder_figure(record: Mapping[str, Any], stem: str, encoder: str | None,
+def _encoder_figure(record: Mapping[str, Any], stem: str, label: str, encoder: str | None,
                     png: str) -> Path | None:
     """The encoder's figure ``png`` beside its record in the store or, for a record shipped in
     a leaderboard's ``records/encoder/``, the copy in that leaderboard's ``figures/`` (a
-    rebuild from records keeps the training curves and reconstructions it cannot redraw)."""
+    rebuild from records keeps the training curves and reconstructions it cannot redraw):
+    named by ``label`` (``"<encoder> <task>"`` on a board of several tasks), or by the encoder
+    alone (the record's own board had one task)."""
     if not record.get("_path"):
         return None
     here = Path(record["_path"]).parent
-    for path in (here / png, here.parent.parent / "figures" / f"{stem}_{encoder}.png"):
+    figures = here.parent.parent / "figures"
+    for path in (here / png, figures / f"{stem}_{label.replace(' ', '_')}.png",
+                 figures / f"{stem}_{encoder}.png"):
         if path.is_file():
             return path
     return None

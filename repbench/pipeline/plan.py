@@ -145,7 +145,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
     task_cfg = {"task": task_name, "task_params": task_params,
                 "task_version": plugin_version(task_cls)}
     task_part = plugin_part(task_name, task_cls, task_params)
-    ds = suite.dataset
+    ds = suite.dataset_for(task_name)
     random_data = {"episodes": ds.random_episodes, "steps": ds.random_steps, "seed": ds.seed}
     data: dict[str, Any] = {"random": random_data, "on_policy": None, "full_state": None}
 

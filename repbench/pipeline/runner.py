@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -264,15 +265,15 @@ def longer_results(folder: str | Path, base: Results) -> Results:
 
 def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None,
-                         records: str | Path | None = None,
+                         records: str | Path | Sequence[str | Path] | None = None,
                          longer: str | Path | None = None,
                          agent_run: str | Path | None = None,
                          predictions: str | Path | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
-    With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``) they are
-    computed from those records alone, without a store or a plan. With ``longer`` (the
-    leaderboard folder of the same task × agent trained for longer, e.g.
+    With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``, or
+    several: e.g. one per task) they are computed from those records alone, without a store.
+    With ``longer`` (the leaderboard folder of the same task × agent trained for longer, e.g.
     ``leaderboards/quick/longer``) ``robustness.csv`` gets the budget rows
     (:func:`longer_results`); with ``agent_run`` (another agent at this budget, e.g.
     ``leaderboards/quick/ddpg``) the agent-agreement rows (:func:`agent_run_results`); with
@@ -283,9 +284,11 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     s = load_suite(suite)
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
     if records is not None:
-        where = f"records folder {records}"
+        folders = [records] if isinstance(records, str | Path) else list(records)
+        where = f"records folder {', '.join(map(str, folders))}"
         problems: list[str] = []
-        found = records_of_suite(load_records(records, problems=problems), s, records)
+        found = [r for f in folders
+                 for r in records_of_suite(load_records(f, problems=problems), s, f)]
         results = results_of(build_plan(s), found, problems)
     else:
         st = Store(store)

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import tomllib
 from pydantic import (
@@ -37,6 +37,7 @@ from pydantic import (
     NonNegativeInt,
     PositiveInt,
     ValidationError,
+    create_model,
     field_validator,
     model_validator,
 )
@@ -73,6 +74,19 @@ class DatasetConfig(_Strict):
         "steps per held-out episode (default: random_steps)"))
     heldout_seed: int = Field(default=1000, description="collection seed of the held-out data")
 
+
+
+def _optional(annotation: Any, metadata: list[Any]) -> Any:
+    """``annotation`` with its constraints (``metadata``: Gt(0) ...), or None."""
+    return (Annotated[(annotation, *metadata)] if metadata else annotation) | None
+
+
+#: ``[task_dataset.<task>]``: any fields of :class:`DatasetConfig`, overriding ``[dataset]``
+#: for that task (an unknown field or a bad value fails at load, naming the field).
+DatasetOverride = create_model(
+    "DatasetOverride", __base__=_Strict,
+    **{name: (_optional(f.annotation, f.metadata), None)
+       for name, f in DatasetConfig.model_fields.items()})
 
 class EncoderTrainingConfig(_Strict):
     """Shared encoder-training settings (per-encoder overrides in ``encoder_params``)."""
@@ -138,10 +152,20 @@ class Suite(_Strict):
     heldout_task_params: dict[str, dict[str, Any]] = Field(default_factory=dict, description=(
         "task parameters overriding task_params for the held-out dataset only (PegInHole-v0: "
         "hole_sampling = 'uniform' puts its holes off the training grid)"))
+    task_dataset: dict[str, DatasetOverride] = Field(default_factory=dict, description=(
+        "fields of [dataset] overridden for one task (e.g. on_policy_steps = its horizon)"))
     encoder_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     metric_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     agent_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     source: str = Field(default="", exclude=True, description="file the suite was read from")
+
+    def dataset_for(self, task: str) -> DatasetConfig:
+        """``[dataset]`` with ``task_dataset.<task>``'s fields overriding it."""
+        override = self.task_dataset.get(task)
+        if override is None:
+            return self.dataset
+        return DatasetConfig.model_validate({**self.dataset.model_dump(),
+                                             **override.model_dump(exclude_unset=True)})
 
     @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod
@@ -166,6 +190,7 @@ class Suite(_Strict):
                     raise ConfigError(f"suite {self.source or self.name}, field "
                                       f"{field_name!r}: {reg._unknown_message(name)}")
         for field_name, kind in (("task_params", "tasks"), ("heldout_task_params", "tasks"),
+                                 ("task_dataset", "tasks"),
                                  ("encoder_params", "encoders"),
                                  ("metric_params", "metrics"), ("agent_params", "agents")):
             listed = set(getattr(self, kind))

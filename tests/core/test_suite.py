@@ -61,6 +61,10 @@ def test_user_suite_file(tmp_path: Path) -> None:
     (("epochs = 1", 'epochs = "many"'), "encoder_training.epochs"),  # wrong type
     (("random_episodes = 2", "random_episodes = -3"), "dataset.random_episodes"),  # negative
     (('seeds = [0]', 'seeds = []'), "seeds"),
+    (("[encoder_training]", '[task_dataset."PegInHole-v0"]\non_policy_stpes = 5\n'
+      "[encoder_training]"), "task_dataset.PegInHole-v0.on_policy_stpes"),
+    (("[encoder_training]", '[task_dataset."PegInHole-v0"]\non_policy_steps = 0\n'
+      "[encoder_training]"), "task_dataset.PegInHole-v0.on_policy_steps"),
 ])
 def test_bad_suite_names_file_and_field(tmp_path: Path, change: tuple[str, str],
                                         field: str) -> None:
@@ -90,3 +94,25 @@ def test_not_toml(tmp_path: Path) -> None:
     p.write_text("tasks = [")
     with pytest.raises(ConfigError, match="not valid TOML"):
         load_suite(p)
+
+
+def test_task_dataset_overrides_dataset_for_that_task_only(tmp_path: Path) -> None:
+    from repbench.pipeline.plan import build_plan
+
+    p = tmp_path / "two.toml"
+    p.write_text(_VALID.replace('tasks = ["PegInHole-v0"]',
+                                'tasks = ["PegInHole-v0", "ToyReach-v0"]')
+                 .replace("[encoder_training]",
+                          '[task_dataset."ToyReach-v0"]\nrandom_steps = 7\n[encoder_training]')
+                 .replace("train_steps = 100\n", "train_steps = 2000\n"))
+    s = load_suite(p)
+    assert s.dataset_for("ToyReach-v0").random_steps == 7
+    assert s.dataset_for("PegInHole-v0") == s.dataset
+    steps = {st.config["task"]: st.config["steps_per_episode"] for st in build_plan(s).stages()
+             if st.kind == "dataset" and st.config.get("kind") == "random"}
+    assert steps == {"PegInHole-v0": 10, "ToyReach-v0": 7}
+    with pytest.raises(ConfigError, match="'task_dataset': 'Nope-v0' is not in tasks"):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(_VALID.replace("[encoder_training]", '[task_dataset."Nope-v0"]\n'
+                                      "random_steps = 7\n[encoder_training]"))
+        load_suite(bad).check_plugins()

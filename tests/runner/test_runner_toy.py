@@ -210,6 +210,28 @@ def test_rebuild_from_shipped_records_keeps_store_figures(tmp_path: Path) -> Non
     assert "Training curves" in (out / "index.html").read_text(encoding="utf-8")
 
 
+def test_two_task_board_keeps_each_tasks_store_figures(tmp_path: Path) -> None:
+    """Records of two tasks, each from its own one-task leaderboard: every encoder figure is
+    named by encoder and task and taken from its own task's leaderboard."""
+    import shutil
+
+    shipped = Path(__file__).resolve().parents[2] / "leaderboards" / "smoke"
+    first = shutil.copytree(shipped, tmp_path / "first")
+    other = shutil.copytree(shipped, tmp_path / "other")
+    recs = load_records(first / "records")
+    copies = []
+    for r in load_records(other / "records"):
+        r["task"]["name"] = "Zeta-v0"
+        copies.append(r)
+    res = build_results(recs + copies)
+    named = {k: v for k, v in res.figures_from_store.items() if k.startswith("loss_curves")}
+    assert named and all(k.endswith((" PegInHole-v0", " Zeta-v0")) for k in named)
+    for key, path in named.items():
+        assert path.is_relative_to(first if key.endswith("PegInHole-v0") else other)
+    assert {k.rsplit(" ", 1)[0] for k in named if k.endswith("Zeta-v0")} == \
+        {k.rsplit(" ", 1)[0] for k in named if k.endswith("PegInHole-v0")}
+
+
 def test_agent_run_rows_join_robustness_csv(suite_file: Path, tmp_path: Path,
                                             store: Path) -> None:
     """``--agent-run``: DDPG trained in its own run joins SAC's board as the SAC-vs-DDPG rows."""
