@@ -52,29 +52,34 @@ def _default(*_):
 SOURCE_M = dict(zip(ENCODERS, [0.0, 5, 10, 0, 6, 10, 2, 7, 8, 3, 4], strict=True))
 
 
-def test_predictions_use_the_source_line_in_ceiling_units():
+def _predict(target_m: dict[str, float], ceiling_target: float = 1.0, choose=None,
+             task: str = TARGET):
+    """The source's calibration (SOURCE_M, privileged return 1) applied to ``target_m`` on
+    ``task`` (privileged return ``ceiling_target``)."""
     m_rows, rl_rows = _source(SOURCE_M)
+    return predict_task(m_rows, rl_rows, [dict(r, task=task) for r in _target(target_m)],
+                        source_task=SOURCE, target_task=task, agent=AGENT, families=ENCODERS,
+                        ceiling_source=1.0, ceiling_target=ceiling_target,
+                        choose=choose or _default)
+
+
+def test_predictions_use_the_source_line_in_ceiling_units():
     target_m = {e: 0.5 * i for i, e in enumerate(ENCODERS)}
-    pred = predict_task(m_rows, rl_rows, _target(target_m), source_task=SOURCE,
-                        target_task=TARGET, agent=AGENT, families=ENCODERS,
-                        ceiling_source=1000.0, ceiling_target=500.0, choose=_default)
+    pred = _predict(target_m, ceiling_target=0.5)
     assert tuple(pred.columns) == COLUMNS
     assert set(pred["metric"]) == {"good"}  # chosen on the source, not refitted
     p = pred.set_index("encoder")
     for e, v in target_m.items():
         # the source line is exact, so its leave-one-family-out errors are 0 and the interval
-        # has no width; predictions are in half the source's units (ceilings 500 / 1000)
+        # has no width; predictions are in half the source's units (ceilings 0.5 / 1)
         assert p.loc[e, "predicted_return"] == pytest.approx((100 + 50 * v) * 0.5)
         assert p.loc[e, "ci_high"] - p.loc[e, "ci_low"] == pytest.approx(0.0, abs=1e-6)
     assert p.loc["base0", "family"] == "baselines"
 
 
 def test_clipped_predictions_rank_by_the_unclipped_line():
-    m_rows, rl_rows = _source(SOURCE_M)
     target_m = {e: 20.0 + i for i, e in enumerate(ENCODERS)}  # all beyond the source's range
-    pred = predict_task(m_rows, rl_rows, _target(target_m), source_task=SOURCE,
-                        target_task=TARGET, agent=AGENT, families=ENCODERS,
-                        ceiling_source=1.0, ceiling_target=1.0, choose=_default)
+    pred = _predict(target_m)
     top = 100 + 50 * max(SOURCE_M.values())
     assert np.allclose(pred["predicted_return"], top)  # clipped to the source's range
     assert np.all(np.diff(pred.set_index("encoder").loc[list(ENCODERS),
@@ -88,11 +93,8 @@ def _actual(order: dict[str, float]) -> list[dict]:
 
 
 def test_score_holds_when_actual_follows_the_prediction_and_fails_when_reversed():
-    m_rows, rl_rows = _source(SOURCE_M)
     target_m = {e: 0.5 * i for i, e in enumerate(ENCODERS)}
-    pred = predict_task(m_rows, rl_rows, _target(target_m), source_task=SOURCE,
-                        target_task=TARGET, agent=AGENT, families=ENCODERS,
-                        ceiling_source=1.0, ceiling_target=1.0, choose=validated_method)
+    pred = _predict(target_m, choose=validated_method)
     same = {e: 10.0 * v for e, v in target_m.items()}
     check, table = score_predictions(pred, _actual(same), n_bootstrap=300)
     assert check.verdict == HOLDS and check.value == pytest.approx(1.0)
@@ -128,12 +130,8 @@ def test_load_predictions_errors_and_task_filter(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"bad\.csv is not a prediction table"):
         load_predictions(tmp_path, res)
     (tmp_path / "bad.csv").unlink()
-    m_rows, rl_rows = _source(SOURCE_M)
     for task in (TARGET, "Other-v0"):
-        pred = predict_task(m_rows, rl_rows, [dict(r, task=task) for r in _target(SOURCE_M)],
-                            source_task=SOURCE, target_task=task, agent=AGENT,
-                            families=ENCODERS, ceiling_source=1.0, ceiling_target=1.0,
-                            choose=_default)
+        pred = _predict(SOURCE_M, task=task)
         pred.to_csv(tmp_path / f"{task}.csv", index=False)
     (only,) = load_predictions(tmp_path, res)  # Other-v0 is not a task of the results
     assert set(only["task"]) == {TARGET}
