@@ -149,13 +149,16 @@ def evaluate(
         "--out", help="Leaderboard folder (default: leaderboards/<suite>-<encoder>).")] = None,
     workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
         help="Parallel workers (default: CPU count).")] = None,
+    task: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
+        "--task", help="Only this task of the suite (repeat for several; default: all of "
+        "them, e.g. quick's PegInHole-v0 and SurfacePress-v0).")] = None,
 ) -> None:
     """Evaluate one encoder against a suite's reference records: compute only its stages,
     merge, and write a leaderboard with it highlighted."""
     from repbench.pipeline.evaluate import evaluate_encoder
 
     result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store, out=out,
-                              reference=reference, workers=workers)
+                              reference=reference, workers=workers, tasks=task or None)
     typer.echo(f"leaderboard written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)

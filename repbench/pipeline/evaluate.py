@@ -14,6 +14,7 @@ printed and shown on the page.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -80,8 +81,10 @@ def _folder_name(encoder: str) -> str:
 def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only: bool = False,
                      store: str | Path | None = None, out: str | Path | None = None,
                      reference: str | Path | None = None, executor: str = "local",
-                     workers: int | None = None, progress: bool = True) -> EvaluateResult:
-    """Compute ``encoder``'s stages of ``suite`` and write the merged leaderboard."""
+                     workers: int | None = None, progress: bool = True,
+                     tasks: Sequence[str] | None = None) -> EvaluateResult:
+    """Compute ``encoder``'s stages of ``suite`` and write the merged leaderboard; with
+    ``tasks``, on those of the suite's tasks only (and against their reference records)."""
     start = time.time()
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
@@ -99,8 +102,14 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
         raise ConfigError(f"no readable records in {ref_dir}")
     reference_records = records_of_suite(reference_records, base, ref_dir,
                                          what="reference records folder")
+    if tasks:
+        unknown = [t for t in tasks if t not in base.tasks]
+        if unknown:
+            raise ConfigError(f"--task {unknown[0]} is not a task of suite {base.name} "
+                              f"({', '.join(base.tasks)}); pass one of those")
+        reference_records = [r for r in reference_records if r["task"]["name"] in tasks]
     one = base.model_copy(update={
-        "encoders": [encoder],
+        "encoders": [encoder], "tasks": list(tasks) if tasks else base.tasks,
         "encoder_params": {encoder: base.encoder_params.get(encoder, {})}})
     plan = build_plan(one)
     stages = [s for s in plan.stages() if not (metrics_only and s.kind == RL)]

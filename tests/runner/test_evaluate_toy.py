@@ -11,6 +11,7 @@ import pytest
 
 import repbench
 from repbench.analysis.calibration import MIN_REFERENCE, predict_return
+from repbench.errors import ConfigError
 from repbench.pipeline.evaluate import evaluate_encoder
 from repbench.pipeline.runner import run_suite
 from repbench.registry import encoders
@@ -80,6 +81,14 @@ def test_evaluate_metrics_only_against_reference_records(tmp_path: Path, half_st
     ref_enc = pd.read_csv(tmp_path / "ref" / "encoders.csv").set_index("encoder")
     for e in ref_enc.index:
         assert enc.loc[e, "ksg"] == pytest.approx(ref_enc.loc[e, "ksg"], rel=1e-5)
+    # --task: the suite's own task gives the same stages (all reused); another is refused
+    again = evaluate_encoder(half_state, suite, metrics_only=True, store=tmp_path / "fresh",
+                             out=tmp_path / "eval2", reference=ref, workers=1, progress=False,
+                             tasks=["ToyReach-v0"])
+    assert again.report.done == {} and len(again.report.cached) == len(res.report.done)
+    with pytest.raises(ConfigError, match=r"--task PegInHole-v0 is not a task of suite"):
+        evaluate_encoder(half_state, suite, metrics_only=True, store=tmp_path / "fresh",
+                         out=tmp_path / "eval3", reference=ref, tasks=["PegInHole-v0"])
 
 
 def test_prediction_interval_is_held_out() -> None:
