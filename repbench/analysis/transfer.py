@@ -98,12 +98,12 @@ def predict_task(source_metric_rows: Sequence[Mapping[str, Any]],
         groups = encs
     half = half_width(held_out_errors(x, y, groups, method), method)
     scale = ceiling_target / ceiling_source
-    unclipped = Method(method.name, method.n_metrics, method.coverage, method.folds, clip=False)
+    line = replace(f, clip=False)  # the same line, unclipped: it ranks encoders beyond the range
     rows = []
     for enc in sorted(target):
         v = {m: target[enc][m] for m in f.metrics}
         src = float(f.predict(v)[0])
-        raw = float(fit(x, y, unclipped).predict(v)[0]) if f.clip else src
+        raw = float(line.predict(v)[0])
         rows.append({
             "task": target_task, "agent": agent, "encoder": enc,
             "family": families.get(enc, ""), "metric": " + ".join(f.metrics),
