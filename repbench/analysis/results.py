@@ -268,6 +268,9 @@ def _provenance(suite: Any, records: list[Mapping[str, Any]]) -> dict[str, Any]:
             "rl_seeds": list(suite.seeds), "dataset": suite.dataset.model_dump(),
             "encoder_training": suite.encoder_training.model_dump(),
             "rl": suite.rl.model_dump()})
+        for key, table in (("task_dataset", suite.task_dataset), ("task_rl", suite.task_rl)):
+            if table:  # per-task overrides of [dataset] / [rl]
+                out[key] = {t: o.model_dump(exclude_unset=True) for t, o in table.items()}
     out.update({
         "git_commits": commits, "versions": versions,
         "compute_seconds_by_stage": {k: round(v, 1) for k, v in sorted(by_stage.items())},

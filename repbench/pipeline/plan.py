@@ -146,6 +146,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                 "task_version": plugin_version(task_cls)}
     task_part = plugin_part(task_name, task_cls, task_params)
     ds = suite.dataset_for(task_name)
+    rl = suite.rl_for(task_name)
     random_data = {"episodes": ds.random_episodes, "steps": ds.random_steps, "seed": ds.seed}
     data: dict[str, Any] = {"random": random_data, "on_policy": None, "full_state": None}
 
@@ -159,8 +160,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
     full_state = on_policy = None
     if ds.on_policy_episodes > 0:
         sac_cls = agents.get(FULL_STATE_AGENT)
-        rl = suite.rl
-        _check_privileged(suite, task_name, task_cls)
+        _check_privileged(suite, task_name, task_cls, rl.privileged_encoder)
         priv_cls = encoders.get(rl.privileged_encoder)
         # the suite's SAC settings (budget-related ones like learning_starts), then what the
         # privileged agent learns the task with, then the suite's explicit privileged settings
@@ -263,16 +263,15 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
             aparams: dict[str, Any] = dict(suite.agent_params.get(a, {}))
             check_kwargs(f"agent_params.{a}", agent_cls, aparams)
             construct_checked(suite, f"agent_params.{a}", agent_cls, aparams,
-                              _agent_validator(suite.rl.train_steps))
+                              _agent_validator(rl.train_steps))
             agent_part = plugin_part(a, agent_cls, aparams)
-            budget = {"train_steps": suite.rl.train_steps,
-                      "eval_episodes": suite.rl.eval_episodes,
-                      "curve_points": suite.rl.curve_points}
+            budget = {"train_steps": rl.train_steps, "eval_episodes": rl.eval_episodes,
+                      "curve_points": rl.curve_points}
             for seed in suite.seeds:
                 tp.rl[(enc_name, a, seed)] = StageSpec(RL, jsonable_config({
                     **task_cfg, "agent": a, "agent_params": aparams,
-                    "train_steps": suite.rl.train_steps, "eval_episodes": suite.rl.eval_episodes,
-                    "curve_points": suite.rl.curve_points, "seed": seed,
+                    "train_steps": rl.train_steps, "eval_episodes": rl.eval_episodes,
+                    "curve_points": rl.curve_points, "seed": seed,
                     "agent_version": plugin_version(agent_cls)}),
                     inputs={"encoder": _ref(enc)}, label=f"{task_name} {a} × {enc_name} s{seed}",
                     record=_context("rl", task_part, data={"random": random_data},
@@ -297,15 +296,16 @@ def _metric_params(suite: Suite, name: str) -> dict[str, Any]:
     return params
 
 
-def _check_privileged(suite: Suite, task_name: str, task_cls: type) -> None:
+def _check_privileged(suite: Suite, task_name: str, task_cls: type,
+                      privileged_encoder: str) -> None:
     """The privileged agent's ``oracle_task`` needs the task's task-frame state."""
     from repbench.task import Task
 
-    if suite.rl.privileged_encoder == "oracle_task" and (
+    if privileged_encoder == "oracle_task" and (
             getattr(task_cls, "task_state", Task.task_state) is Task.task_state):
         raise ConfigError(
             f"suite {suite.source or suite.name}: task {task_name} defines no task_state, "
-            f"which the privileged agent ({suite.rl.privileged_encoder}) observes; implement "
+            f"which the privileged agent ({privileged_encoder}) observes; implement "
             "Task.task_state or set rl.privileged_encoder = 'oracle'")
 
 

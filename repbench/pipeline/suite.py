@@ -75,18 +75,31 @@ class DatasetConfig(_Strict):
     heldout_seed: int = Field(default=1000, description="collection seed of the held-out data")
 
 
-
 def _optional(annotation: Any, metadata: list[Any]) -> Any:
     """``annotation`` with its constraints (``metadata``: Gt(0) ...), or None."""
     return (Annotated[(annotation, *metadata)] if metadata else annotation) | None
 
 
-#: ``[task_dataset.<task>]``: any fields of :class:`DatasetConfig`, overriding ``[dataset]``
-#: for that task (an unknown field or a bad value fails at load, naming the field).
-DatasetOverride = create_model(
-    "DatasetOverride", __base__=_Strict,
-    **{name: (_optional(f.annotation, f.metadata), None)
-       for name, f in DatasetConfig.model_fields.items()})
+def _override_model(config: type[BaseModel]) -> type[BaseModel]:
+    """A model of any subset of ``config``'s fields (each optional, with its constraints): a
+    per-task table that overrides the suite-wide one; an unknown field or a bad value fails at
+    load, naming the field."""
+    return create_model(
+        f"{config.__name__}Override", __base__=_Strict,
+        **{name: (_optional(f.annotation, f.metadata), None)
+           for name, f in config.model_fields.items()})
+
+
+def _overridden(config: Any, override: BaseModel | None) -> Any:
+    """``config`` with the fields ``override`` sets, validated as a whole."""
+    if override is None:
+        return config
+    return type(config).model_validate({**config.model_dump(),
+                                        **override.model_dump(exclude_unset=True)})
+
+
+#: ``[task_dataset.<task>]``: any fields of :class:`DatasetConfig`, overriding ``[dataset]``.
+DatasetOverride = _override_model(DatasetConfig)
 
 class EncoderTrainingConfig(_Strict):
     """Shared encoder-training settings (per-encoder overrides in ``encoder_params``)."""
@@ -126,6 +139,11 @@ class RLConfig(_Strict):
         "repbench.rl.full_state.PRIVILEGED_AGENT_PARAMS")
 
 
+#: ``[task_rl.<task>]``: any fields of :class:`RLConfig`, overriding ``[rl]`` (e.g. a longer
+#: ``train_steps`` for a harder task).
+RLOverride = _override_model(RLConfig)
+
+
 class MetricsConfig(_Strict):
     """Which data the metrics are computed on."""
 
@@ -154,6 +172,8 @@ class Suite(_Strict):
         "hole_sampling = 'uniform' puts its holes off the training grid)"))
     task_dataset: dict[str, DatasetOverride] = Field(default_factory=dict, description=(
         "fields of [dataset] overridden for one task (e.g. on_policy_steps = its horizon)"))
+    task_rl: dict[str, RLOverride] = Field(default_factory=dict, description=(
+        "fields of [rl] overridden for one task (e.g. its train_steps)"))
     encoder_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     metric_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
     agent_params: dict[str, dict[str, Any]] = Field(default_factory=dict)
@@ -161,11 +181,11 @@ class Suite(_Strict):
 
     def dataset_for(self, task: str) -> DatasetConfig:
         """``[dataset]`` with ``task_dataset.<task>``'s fields overriding it."""
-        override = self.task_dataset.get(task)
-        if override is None:
-            return self.dataset
-        return DatasetConfig.model_validate({**self.dataset.model_dump(),
-                                             **override.model_dump(exclude_unset=True)})
+        return _overridden(self.dataset, self.task_dataset.get(task))
+
+    def rl_for(self, task: str) -> RLConfig:
+        """``[rl]`` with ``task_rl.<task>``'s fields overriding it."""
+        return _overridden(self.rl, self.task_rl.get(task))
 
     @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod
@@ -190,7 +210,7 @@ class Suite(_Strict):
                     raise ConfigError(f"suite {self.source or self.name}, field "
                                       f"{field_name!r}: {reg._unknown_message(name)}")
         for field_name, kind in (("task_params", "tasks"), ("heldout_task_params", "tasks"),
-                                 ("task_dataset", "tasks"),
+                                 ("task_dataset", "tasks"), ("task_rl", "tasks"),
                                  ("encoder_params", "encoders"),
                                  ("metric_params", "metrics"), ("agent_params", "agents")):
             listed = set(getattr(self, kind))

@@ -65,6 +65,8 @@ def test_user_suite_file(tmp_path: Path) -> None:
       "[encoder_training]"), "task_dataset.PegInHole-v0.on_policy_stpes"),
     (("[encoder_training]", '[task_dataset."PegInHole-v0"]\non_policy_steps = 0\n'
       "[encoder_training]"), "task_dataset.PegInHole-v0.on_policy_steps"),
+    (("[encoder_training]", '[task_rl."PegInHole-v0"]\ntrain_stpes = 5\n[encoder_training]'),
+     "task_rl.PegInHole-v0.train_stpes"),
 ])
 def test_bad_suite_names_file_and_field(tmp_path: Path, change: tuple[str, str],
                                         field: str) -> None:
@@ -96,21 +98,27 @@ def test_not_toml(tmp_path: Path) -> None:
         load_suite(p)
 
 
-def test_task_dataset_overrides_dataset_for_that_task_only(tmp_path: Path) -> None:
+def test_task_dataset_and_task_rl_override_for_that_task_only(tmp_path: Path) -> None:
     from repbench.pipeline.plan import build_plan
 
     p = tmp_path / "two.toml"
     p.write_text(_VALID.replace('tasks = ["PegInHole-v0"]',
                                 'tasks = ["PegInHole-v0", "ToyReach-v0"]')
                  .replace("[encoder_training]",
-                          '[task_dataset."ToyReach-v0"]\nrandom_steps = 7\n[encoder_training]')
+                          '[task_dataset."ToyReach-v0"]\nrandom_steps = 7\n'
+                          '[task_rl."ToyReach-v0"]\ntrain_steps = 3000\n[encoder_training]')
                  .replace("train_steps = 100\n", "train_steps = 2000\n"))
     s = load_suite(p)
     assert s.dataset_for("ToyReach-v0").random_steps == 7
-    assert s.dataset_for("PegInHole-v0") == s.dataset
-    steps = {st.config["task"]: st.config["steps_per_episode"] for st in build_plan(s).stages()
+    assert s.dataset_for("PegInHole-v0") == s.dataset and s.rl_for("PegInHole-v0") == s.rl
+    assert s.rl_for("ToyReach-v0").train_steps == 3000
+    assert s.rl_for("ToyReach-v0").eval_episodes == s.rl.eval_episodes
+    stages = build_plan(s).stages()
+    steps = {st.config["task"]: st.config["steps_per_episode"] for st in stages
              if st.kind == "dataset" and st.config.get("kind") == "random"}
     assert steps == {"PegInHole-v0": 10, "ToyReach-v0": 7}
+    budgets = {st.config["task"]: st.config["train_steps"] for st in stages if st.kind == "rl"}
+    assert budgets == {"PegInHole-v0": 2000, "ToyReach-v0": 3000}
     with pytest.raises(ConfigError, match="'task_dataset': 'Nope-v0' is not in tasks"):
         bad = tmp_path / "bad.toml"
         bad.write_text(_VALID.replace("[encoder_training]", '[task_dataset."Nope-v0"]\n'
