@@ -298,9 +298,11 @@ def task_checks(rl_rows: Sequence[Mapping[str, Any]], ranking: pd.DataFrame | No
     """The across-tasks rows: per agent, the first task (in ``rl_rows``' order) against each
     other task — the encoder ranking (Kendall τ) and the first task's best metric."""
     out: list[Check] = []
-    tasks = list(dict.fromkeys(r["task"] for r in rl_rows))
+    tasks = rl_tasks(rl_rows)
+    if not tasks:
+        return out
+    first = tasks[0]
     for agent in dict.fromkeys(r["agent"] for r in rl_rows):
-        first = tasks[0] if tasks else None
         for other in tasks[1:]:
             a = returns_by_encoder(rl_rows, first, agent)
             b = returns_by_encoder(rl_rows, other, agent)
@@ -315,6 +317,11 @@ def task_checks(rl_rows: Sequence[Mapping[str, Any]], ranking: pd.DataFrame | No
                     check=f"{first}'s best metric on {other} ({agent.upper()})", first_label=first,
                     second_label=other))
     return out
+
+
+def rl_tasks(rl_rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The tasks with RL rows, in the rows' (the suite's) order."""
+    return list(dict.fromkeys(r["task"] for r in rl_rows))
 
 
 def robustness_table(checks: Sequence[Check]) -> pd.DataFrame:

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from repbench.analysis.correlation import mean_ci
+from repbench.analysis.robustness import rl_tasks
 from repbench.report.families import (
     encoder_families,
     family_legend,
@@ -639,7 +640,7 @@ def budget_agreement(res: Any, path: Path) -> Path | None:
 
 def _tasks(res: Any) -> list[str]:
     """The tasks with RL rows, in the suite's order."""
-    return list(dict.fromkeys(r["task"] for r in res.rl_rows))
+    return rl_tasks(res.rl_rows)
 
 
 def task_agreement(res: Any, path: Path) -> Path | None:
