@@ -24,6 +24,7 @@ from repbench.pipeline.records import (
     RECORD_FILE,
     RERUN,
     inspect_record,
+    mixed_encoder_weights,
     plugin_version,
     versions_of,
 )
@@ -190,6 +191,9 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     installed = installed or {}
     records = sorted(records, key=_order_by(suite))
     res.records = list(records)
+    for warning in mixed_encoder_weights(records):
+        log.warning("%s", warning)
+        res.warnings.append(warning)
     multi_task = len({r["task"]["name"] for r in records}) > 1
     directions: dict[str, bool] = {}
     for r in records:

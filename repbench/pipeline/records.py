@@ -10,6 +10,12 @@ or the code that made it:
   plugin's declared ``version`` and its constructor parameters), where they apply;
 * ``data`` — the datasets it was computed on (sizes, seeds, the full-state agent's budget) and
   ``data_checksums`` (SHA-256 of the arrays, when known);
+* ``encoder_weights`` — SHA-256 of the trained encoder file the result was computed from (its
+  own for an encoder record, its encoder's for a metric or RL record; null without an encoder).
+  Encoder training is not bit-reproducible across CPUs (torch picks AVX2 or AVX-512 kernels),
+  so one encoder's stage key can stand for different weights on two machines: a board whose
+  records of one encoder carry different weights mixes two trainings
+  (:func:`mixed_encoder_weights` says so on the page);
 * ``seed``, ``budget`` (RL steps and evaluation episodes);
 * ``values`` — the result: a metric's value with its interval (``ci_low``, ``ci_high``); an RL
   run's evaluation return, success rate, per-episode returns and learning curve; an encoder's
@@ -36,7 +42,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -90,7 +96,8 @@ def versions_of(record: Mapping[str, Any]) -> dict[str, tuple[str, int]]:
 
 def make_record(context: Mapping[str, Any], values: Mapping[str, Any], *,
                 stage: Mapping[str, Any], timings: Mapping[str, Any],
-                data_checksums: Mapping[str, str] | None = None) -> dict[str, Any]:
+                data_checksums: Mapping[str, str] | None = None,
+                encoder_weights: str | None = None) -> dict[str, Any]:
     """A complete record (see the module docstring)."""
     import time
 
@@ -100,6 +107,7 @@ def make_record(context: Mapping[str, Any], values: Mapping[str, Any], *,
         "identity": identity_key(context),
         "values": jsonable(dict(values)),
         "data_checksums": dict(data_checksums or {}),
+        "encoder_weights": encoder_weights,
         "timings": jsonable(dict(timings)),
         "library_versions": library_versions(),
         "git_commit": git_commit(),
@@ -184,3 +192,26 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def mixed_encoder_weights(records: Iterable[Mapping[str, Any]]) -> list[str]:
+    """One warning line per (task, encoder) whose records were computed from different trained
+    weights (``encoder_weights``), e.g. metrics from a training on one machine and RL returns
+    from a training on another. Records without the field (made before it existed) are not
+    judged."""
+    seen: dict[tuple[str, str], dict[str, set[str]]] = {}
+    for r in records:
+        digest, enc = r.get("encoder_weights"), r.get("encoder")
+        if not digest or not enc:
+            continue
+        task = (r.get("task") or {}).get("name", "?")
+        seen.setdefault((task, enc["name"]), {}).setdefault(digest, set()).add(r.get("kind", "?"))
+    out = []
+    for (task, name), digests in sorted(seen.items()):
+        if len(digests) > 1:
+            kinds = "; ".join(f"{d[:12]}: {', '.join(sorted(k))}" for d, k in digests.items())
+            out.append(f"encoder {name} on {task}: its records come from {len(digests)} "
+                       f"different trainings of its weights ({kinds}), e.g. made on different "
+                       "machines; its metrics and returns do not describe one encoder; rerun its "
+                       "stages in one store")
+    return out

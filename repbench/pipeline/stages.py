@@ -23,7 +23,7 @@ from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
 from repbench.pipeline.diskfull import stop_when_full
 from repbench.pipeline.records import RECORD_FILE, make_record, write_record
-from repbench.pipeline.store import Store, stage_key
+from repbench.pipeline.store import Store, file_sha256, stage_key
 from repbench.registry import agents, encoders, metrics, tasks
 
 DATASET, FULL_STATE, ENCODER, LATENTS, METRIC, RL, DIAGNOSTICS = (
@@ -375,5 +375,26 @@ def _write_record(spec: StageSpec, store: Store, w: Any, wall_s: float, cpu_s: f
     record = make_record(spec.record, values, data_checksums=checksums,
                          stage={"kind": spec.kind, "key": spec.key, "label": spec.label,
                                 "inputs": sorted(k for _, k in spec.inputs.values())},
-                         timings={"wall_time_s": round(wall_s, 3), "cpu_time_s": round(cpu_s, 3)})
+                         timings={"wall_time_s": round(wall_s, 3), "cpu_time_s": round(cpu_s, 3)},
+                         encoder_weights=_encoder_weights(spec, store, w))
     write_record(record, w.file(RECORD_FILE))
+
+
+def _encoder_weights(spec: StageSpec, store: Store, w: Any) -> str | None:
+    """SHA-256 of the trained encoder file a stage's result was computed from: its own
+    ``encoder.pt`` for an encoder stage, its input encoder's for latents and RL, the encoder
+    behind its latents for a metric; None for stages without an encoder. The stage key cannot
+    tell two trainings of one encoder apart (training is not bit-reproducible across CPUs), the
+    weights can (:func:`repbench.pipeline.records.mixed_encoder_weights`)."""
+    if spec.kind == ENCODER:
+        own = w.file("encoder.pt")
+        return file_sha256(own) if own.is_file() else None
+    keys = [key for kind, key in spec.inputs.values() if kind == ENCODER]
+    for kind, key in spec.inputs.values():
+        if kind == LATENTS and (latents := store.get(LATENTS, key, verify=False)) is not None:
+            keys += [k for k in latents.meta.get("inputs", [])
+                     if store.artifact_dir(ENCODER, k).is_dir()]
+    for key in keys:
+        if (enc := store.get(ENCODER, key, verify=False)) is not None:
+            return enc.meta.get("files", {}).get("encoder.pt")
+    return None
