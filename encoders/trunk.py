@@ -195,8 +195,9 @@ class TrunkEncoder(Encoder):
         self.net_ = net.to(device, memory_format=torch.channels_last)
         data = {**self._dataset_tensors(dataset), **self._extra_tensors(dataset)}
         self.history_: list[dict[str, Any]] = []
-        self._train(data, rows[~held], None if nxt is None else nxt[~held],
-                    rows[held], None if nxt is None else nxt[held])
+        with devices.exact_cuda(device):  # seeded GPU training: the same weights every run
+            self._train(data, rows[~held], None if nxt is None else nxt[~held],
+                        rows[held], None if nxt is None else nxt[held])
         return self
 
     def _train(self, data: dict[str, torch.Tensor], rows: np.ndarray, nxt: np.ndarray | None,
@@ -287,7 +288,8 @@ class TrunkEncoder(Encoder):
         self.check_is_fitted()
         data = {**self._dataset_tensors(dataset), **self._extra_tensors(dataset)}
         rows, nxt = self._pairs(dataset)
-        return self._evaluate(data, rows, nxt)
+        with devices.exact_cuda(self._device):
+            return self._evaluate(data, rows, nxt)
 
     def _dataset_tensors(self, dataset: Dataset) -> dict[str, torch.Tensor]:
         """The whole dataset on the device once (images stay uint8)."""
@@ -390,7 +392,8 @@ class TrunkEncoder(Encoder):
     def encode(self, observations: Mapping[str, Any]) -> np.ndarray:
         """μ_z of an observation batch as float32 [N, latent_dim] (reads only
         :attr:`required_modalities`)."""
-        with torch.inference_mode():
+        self.check_is_fitted()
+        with torch.inference_mode(), devices.exact_cuda(self._device):
             mu, _ = self._encode_obs(observations)
         return mu.cpu().numpy()
 

@@ -2,6 +2,8 @@
 
 * :func:`resolve_device` — ``"auto"`` → ``"cuda"`` when torch sees a GPU, else ``"cpu"``; any
   other value is checked to be a torch device and returned unchanged.
+* :func:`exact_cuda` — on a CUDA device, deterministic kernels and full float32 (no TF32) inside
+  the block, so a seeded training gives the same weights run to run; on the CPU a no-op.
 * :func:`jax_single_thread` — JAX (the SBX agents) on one CPU thread, set before it is imported.
 * :func:`torch_threads` — inside the block torch (and, with ``blas=True``, the BLAS/OpenMP pools
   of numpy and scikit-learn) use ``n`` threads; the previous settings come back afterwards.
@@ -61,6 +63,39 @@ def torch_threads(n: int | None, *, blas: bool = False) -> Iterator[None]:
             yield
     finally:
         torch.set_num_threads(before)
+
+
+@contextlib.contextmanager
+def exact_cuda(device: str | object) -> Iterator[None]:
+    """On a CUDA ``device``: deterministic cuDNN and cuBLAS kernels, no cuDNN autotuning and no
+    TF32 inside the block, the previous settings back afterwards; elsewhere nothing changes.
+
+    torch's defaults on a GPU are neither: cuDNN picks nondeterministic convolution kernels (a
+    seeded encoder training gives other weights on every run) and computes convolutions in TF32
+    (10-bit mantissa; a loss differs from the CPU's in the 4th digit). Measured on an H200,
+    torch 2.11: both tests of that (tests/encoders/test_vae.py) fail without this block.
+    """
+    import os
+
+    import torch
+
+    if torch.device(str(device)).type != "cuda":
+        yield
+        return
+    # read when cuBLAS creates its workspace: deterministic matrix products need it set
+    os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    cudnn, matmul = torch.backends.cudnn, torch.backends.cuda.matmul
+    before = (cudnn.deterministic, cudnn.benchmark, cudnn.allow_tf32, matmul.allow_tf32,
+              torch.are_deterministic_algorithms_enabled(),
+              torch.is_deterministic_algorithms_warn_only_enabled())
+    cudnn.deterministic, cudnn.benchmark, cudnn.allow_tf32, matmul.allow_tf32 = (
+        True, False, False, False)
+    torch.use_deterministic_algorithms(True, warn_only=True)
+    try:
+        yield
+    finally:
+        cudnn.deterministic, cudnn.benchmark, cudnn.allow_tf32, matmul.allow_tf32 = before[:4]
+        torch.use_deterministic_algorithms(before[4], warn_only=before[5])
 
 
 def _load_thread_pools() -> None:

@@ -87,8 +87,8 @@ def test_trained_policy_carries_its_statistics_through_save_and_load(toy_task, s
     assert isinstance(ext, StandardizedFeatures)
     env = make_encoded_env(toy_task, state_encoder)
     mean, std = feature_statistics(env, 40, seed=20_000)  # NORMALIZE_SEED_BASE, seed 0
-    np.testing.assert_allclose(ext.mean.numpy(), mean)
-    np.testing.assert_allclose(ext.std.numpy(), std)
+    np.testing.assert_allclose(ext.mean.cpu().numpy(), mean)  # the policy's device
+    np.testing.assert_allclose(ext.std.cpu().numpy(), std)
     loaded = load_model(save_policy(model, tmp_path / "p.zip"))
     np.testing.assert_array_equal(loaded.policy.actor.features_extractor.std.numpy(), std)
     obs, _ = env.reset(seed=5)
