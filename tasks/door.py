@@ -53,13 +53,13 @@ class DoorTask(RobosuiteTask):
     version: ClassVar[int] = 0
 
     def __init__(self, horizon: int = 60, grid_size: int = 5,
-                 shift_range: tuple[float, float] = (-0.05, 0.05),
+                 shift_range: tuple[float, float] = (-0.08, 0.08),
                  yaw_range: tuple[float, float] = (-0.25, 0.25),
                  config_sampling: str = "grid", success_angle: float = 0.3,
                  hinge_damping: float = 0.3, hinge_stiffness: float = 0.5,
                  hinge_friction: float = 0.05, image_size: int = 64, fast_render: bool = True,
                  camera: bool = True, start: str = "above",
-                 start_xyz: tuple[float, float] = (-0.02, -0.06), start_offset: float = 0.01,
+                 start_xyz: tuple[float, float] = (-0.02, -0.07), start_offset: float = 0.01,
                  start_height: float = 0.07, action_scale: float = 0.02,
                  physics_dt: float = 0.005, ft_cutoff_hz: float = 10.0,
                  robot_view: str = "tip") -> None:

@@ -4,7 +4,7 @@ The Panda holds a rigid rod (welded into the hand below the wrist force/torque s
 peg-in-hole's peg and SurfacePress's pusher). A cabinet stands on the table with a door on its
 front face, hinged about a vertical axis; the door can only be *pulled* open (its joint stops at
 closed, and the cabinet blocks its back). The only handle is a ring on the door's top, in front
-of the panel near its free edge: the rod must go down into the ring (8 mm clearance each side)
+of the panel near its free edge: the rod must go down into the ring (5 mm clearance each side)
 and then pull the ring along the door's arc. What varies per episode is the hinge's pose: its
 position along the cabinet's front (``hinge_shift``) and the cabinet's yaw about the hinge, so
 the ring lies somewhere in a ~10 cm x 9 cm patch and the direction to pull varies with it.
@@ -46,7 +46,7 @@ HINGE_XY = (0.06, 0.10)
 #: Door panel: thickness, width, height (m).
 DOOR_T, DOOR_W, DOOR_H = 0.02, 0.20, 0.12
 #: The ring: inner half-width, wall thickness, height (m), its walls flush with the door's top.
-RING_HALF, RING_WALL, RING_DEPTH = 0.020, 0.006, 0.03
+RING_HALF, RING_WALL, RING_DEPTH = 0.017, 0.006, 0.03
 #: The ring's centre in the door frame (x towards the robot is negative; y along the door).
 RING_XY = (-(DOOR_T + RING_HALF + RING_WALL), -(DOOR_W - 0.03))
 #: Engagement point: the ring's centre, this far below the door's top (m).
@@ -72,7 +72,7 @@ class DoorConfig:
     """Episode length in control steps (20 Hz)."""
     grid_size: int = 5
     """Configurations form a ``grid_size x grid_size`` grid: hinge shift x yaw."""
-    shift_range: tuple[float, float] = (-0.05, 0.05)
+    shift_range: tuple[float, float] = (-0.08, 0.08)
     """Range of the hinge's shift along world y (m)."""
     yaw_range: tuple[float, float] = (-0.25, 0.25)
     """Range of the cabinet's yaw about the hinge (rad)."""
@@ -96,7 +96,7 @@ class DoorConfig:
     start: str = "above"
     """Default start: ``"above"`` the door at a fixed place (RL) or ``"engaged"`` with the rod in
     the ring (exploration)."""
-    start_xyz: tuple[float, float] = (-0.02, -0.06)
+    start_xyz: tuple[float, float] = (-0.02, -0.07)
     """Planar position of an ``"above"`` start (m, world); the same for every configuration."""
     start_offset: float = 0.01
     """Half-width of the uniform planar jitter of an ``"above"`` start (m)."""
@@ -158,7 +158,7 @@ class DoorConfig:
         lo, hi = self.shift_range
         if not -0.1 <= lo <= hi <= 0.1:
             raise bad("shift_range", "must be (low, high) m with -0.1 <= low <= high <= 0.1 "
-                                     "(default (-0.05, 0.05))")
+                                     "(default (-0.08, 0.08))")
         lo, hi = self.yaw_range
         if not -0.5 <= lo <= hi <= 0.5:
             raise bad("yaw_range", "must be (low, high) rad with -0.5 <= low <= high <= 0.5 "

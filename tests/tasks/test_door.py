@@ -68,7 +68,7 @@ def test_bad_config_names_the_field(field: str, value, match: str) -> None:
 def test_grid_is_shift_by_yaw() -> None:
     grid = DoorConfig().grid_configs()
     assert grid.shape == (25, 2)
-    np.testing.assert_allclose(np.unique(grid[:, 0]), [-0.05, -0.025, 0, 0.025, 0.05])
+    np.testing.assert_allclose(np.unique(grid[:, 0]), [-0.08, -0.04, 0, 0.04, 0.08])
     np.testing.assert_allclose(np.unique(grid[:, 1]), [-0.25, -0.125, 0, 0.125, 0.25])
 
 
