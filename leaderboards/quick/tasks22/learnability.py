@@ -2,7 +2,8 @@
 state ⊕ robot state, ``oracle_task``), trained exactly as the quick suite's full-state stage
 trains it, must reach >= 90 % evaluation success in every seed (issue 22).
 
-    nice -n 19 python leaderboards/quick/tasks22/learnability.py --task SurfacePress-v0 --seeds 0 1 2
+    nice -n 19 python leaderboards/quick/tasks22/learnability.py --task SurfacePress-v0 \\
+        --seeds 0 1 2
 
 ``--encoder proprio_only`` trains the blind baseline instead, as the suite's RL stage does
 (``repbench.pipeline.stages._run_rl``): the suite's SAC agent (``[agent_params.sac]``) on the
@@ -58,7 +59,6 @@ def main() -> int:
     params = {**suite.agent_params.get("sac", {}), **PRIVILEGED_AGENT_PARAMS,
               **rl.privileged_params, "backend": args.backend}
     steps = args.steps or rl.full_state_train_steps
-    _smoke_learning_starts(params, steps)
     task = repbench.tasks.get(args.task)(**suite.task_params.get(args.task, {}))
     data = task.collect("random", n_episodes=2, steps_per_episode=5, seed=suite.dataset.seed,
                         progress=False)
@@ -66,6 +66,7 @@ def main() -> int:
     out = Path(args.out or Path(__file__).with_name(f"learnability_{args.task}{suffix}.jsonl"))
     if args.encoder != "oracle_task":
         return _blind(args, suite, task, out)
+    _smoke_learning_starts(params, steps)
     print(f"{args.task}: privileged SAC, {steps} steps, eval {rl.eval_episodes} episodes, "
           f"params {params}", flush=True)
     for seed in args.seeds:
