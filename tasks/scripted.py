@@ -90,3 +90,55 @@ class BlindPress:
         a = np.array([0.0, 0.0, -self.rate if self.t < self.steps else 0.0], np.float32)
         self.t += 1
         return a
+
+
+# -- Door-v0 -------------------------------------------------------------------------------------
+class PrivilegedDoor:
+    """Reach over the ring (known from z°), go down into it, pull along the door's arc.
+
+    ``shift_yaw`` replaces z°'s configuration (an open-loop script recorded for one
+    configuration and replayed on others is this controller with a fixed, wrong configuration).
+    """
+
+    def __init__(self, shift_yaw: tuple[float, float] | None = None) -> None:
+        self.shift_yaw = shift_yaw
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        from repbench_tasks.door_env import (
+            DOOR_H,
+            ENGAGE_DEPTH,
+            RING_HALF,
+            ROD_RADIUS,
+            Z_ANGLE,
+            Z_SHIFT,
+            Z_YAW,
+            approach_action,
+            pull_direction,
+            ring_xy,
+        )
+
+        z = np.asarray(obs[TRUE_STATE], np.float64)
+        shift, yaw = self.shift_yaw or (z[Z_SHIFT], z[Z_YAW])
+        tip = np.asarray(obs[PROPRIO], np.float64)[TIP_POSITION]
+        angle = float(z[Z_ANGLE])
+        target = np.array([*ring_xy(shift, yaw, angle), TABLE_TOP_Z + DOOR_H - ENGAGE_DEPTH])
+        s = tip - target
+        engaged = bool(s[2] < ENGAGE_DEPTH - 0.005
+                       and np.linalg.norm(s[:2]) < RING_HALF - ROD_RADIUS + 0.003)
+        return approach_action(s, pull_direction(yaw, angle), engaged).astype(np.float32)
+
+
+class ReplayDoor:
+    """Open loop: replay a recorded action sequence (call :meth:`reset` between episodes)."""
+
+    def __init__(self, actions: np.ndarray) -> None:
+        self.actions, self.t = np.asarray(actions, np.float32), 0
+
+    def reset(self) -> None:
+        """Start a new episode."""
+        self.t = 0
+
+    def __call__(self, obs: Mapping[str, np.ndarray]) -> np.ndarray:
+        a = self.actions[min(self.t, len(self.actions) - 1)]
+        self.t += 1
+        return a
