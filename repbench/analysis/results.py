@@ -28,14 +28,19 @@ from repbench.pipeline.records import (
     plugin_version,
     versions_of,
 )
-from repbench.pipeline.store import META, Store, file_sha256
+from repbench.pipeline.store import (
+    META,
+    RECORD_STAGES,
+    Store,
+    file_sha256,
+    holds_exported_records,
+)
 from repbench.registry import REGISTRIES
 
 log = logging.getLogger(__name__)
 
 #: Stage kinds whose records the leaderboard reads.
-RECORD_KINDS = ("dataset", "full_state_agent", "diagnostics", "encoder", "latents", "metric",
-                "rl")
+RECORD_KINDS = RECORD_STAGES
 _LABELS = {"dataset": "{task} {name} data", "full_state_agent": "{task} privileged SAC"}
 
 
@@ -87,7 +92,8 @@ def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS,
     kinds = tuple(kinds)
     for source in sources:
         root = source.root if isinstance(source, Store) else Path(source)
-        in_store = isinstance(source, Store) or (root / ".tmp").is_dir()
+        in_store = isinstance(source, Store) or (
+            (root / ".tmp").is_dir() and not holds_exported_records(root))
         if in_store:  # a stage store
             paths: Iterable[Path] = (p for k in kinds for p in sorted((root / k).glob(
                 f"*/{RECORD_FILE}")))

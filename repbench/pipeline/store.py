@@ -44,6 +44,9 @@ except ImportError:  # pragma: no cover (Windows: no stage locks)
 log = logging.getLogger(__name__)
 
 STORE_ENV_VAR = "REPBENCH_STORE"
+#: the stages whose artifacts hold a result record (a records folder has one subfolder each)
+RECORD_STAGES = ("dataset", "full_state_agent", "diagnostics", "encoder", "latents", "metric",
+                 "rl")
 META = "meta.json"
 STORE_FORMAT = 1
 LOCK_SUFFIX = ".lock"
@@ -51,6 +54,13 @@ LOCK_SUFFIX = ".lock"
 _TMP_NAME = re.compile(r"^(?P<stage>.+)-(?P<key>[^-]+)-(?P<pid>\d+)-(?P<tag>[0-9a-f]{8})$")
 #: stage locks this process holds: (lock path, thread id) → [file descriptor, depth]
 _HELD: dict[tuple[str, int], list[int]] = {}
+
+
+def holds_exported_records(root: Path) -> bool:
+    """Whether ``root`` is a folder of exported records (``<stage>/<name>.json``, as a
+    leaderboard's ``records/``) rather than a stage store (``<stage>/<key>/`` folders)."""
+    return root.is_dir() and any(p.is_file() for stage in RECORD_STAGES
+                                 for p in (root / stage).glob("*.json"))
 
 
 def default_store_root() -> Path:
@@ -178,6 +188,10 @@ class Store:
             raise StoreError("--store is empty; pass the store folder, or leave the option out "
                              f"for ${STORE_ENV_VAR} or the default {default_store_root()}")
         self.root = Path(root).expanduser() if root is not None else default_store_root()
+        if holds_exported_records(self.root):  # a store here would hide its records from readers
+            raise StoreError(f"{self.root} is a folder of exported records (<kind>/<name>.json), "
+                             "not a stage store; pass another --store, and give the records "
+                             "folder to --records")
         try:
             (self.root / ".tmp").mkdir(parents=True, exist_ok=True)
             probe = self.root / ".tmp" / f".probe-{uuid.uuid4().hex}"

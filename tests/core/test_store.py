@@ -122,3 +122,19 @@ def test_kill_9_during_write_never_exposes_a_partial_artifact(tmp_path: Path) ->
     assert store.clean_tmp(older_than_s=0) == 1
     _put(store, "big")
     assert store.get("stage", "big") is not None
+
+
+def test_a_records_folder_is_refused_as_a_store_and_still_read(tmp_path: Path) -> None:
+    """A store opened on a leaderboard's ``records/`` folder would create ``.tmp/`` there, and
+    readers would then take the folder for a store and find no records in it."""
+    from repbench.analysis.results import load_records
+
+    shipped = next((Path(__file__).parents[2] / "leaderboards/quick/records/rl").glob("*.json"))
+    records = tmp_path / "records"
+    (records / "rl").mkdir(parents=True)
+    (records / "rl" / shipped.name).write_bytes(shipped.read_bytes())
+    with pytest.raises(StoreError, match=r"folder of exported records.*another --store"):
+        Store(records)
+    assert not (records / ".tmp").exists()  # nothing written
+    (records / ".tmp").mkdir()  # left by an older version
+    assert [r["kind"] for r in load_records(records)] == ["rl"]
