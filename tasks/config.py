@@ -1,7 +1,9 @@
-"""Hyperparameters of the peg-in-hole task and their validation (one-line ``ConfigError``s)."""
+"""Hyperparameters of the peg-in-hole task and their validation (one-line ``ConfigError``s), and
+the type and timing checks every task config shares (``check_types``, ``check_timing``)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -20,6 +22,33 @@ START_KINDS = ("above", "inserted")
 HOLE_SAMPLING = ("grid", "uniform")
 #: What the RL agent sees of the robot beside μ_z (:meth:`PegInHoleTask.robot_state`).
 ROBOT_VIEWS = ("proprio", "tip")
+
+
+def check_types(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
+    """Type checks of a task config's float/bool/pair fields (before any arithmetic)."""
+    def number(v: Any) -> bool:
+        return isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
+
+    for f in fields(cfg):
+        v = getattr(cfg, f.name)
+        if f.type == "float" and not number(v):
+            raise bad(f.name, f"must be a number (default {f.default!r})")
+        if f.type == "bool" and not isinstance(v, (bool, np.bool_)):
+            raise bad(f.name, "must be true or false")
+        if f.type == "str" and not isinstance(v, str):
+            raise bad(f.name, f"must be a string (default {f.default!r})")
+        if f.type == "tuple[float, float]" and not (
+                isinstance(v, (tuple, list)) and len(v) == 2 and all(map(number, v))):
+            raise bad(f.name, f"must be a pair of numbers (default {list(f.default)!r})")
+
+
+def check_timing(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
+    """The physics step divides the 20 Hz control period; the F/T cut-off is below Nyquist."""
+    steps = (1.0 / 20.0) / cfg.physics_dt
+    if abs(steps - round(steps)) > 1e-6 or cfg.physics_dt > 0.01:
+        raise bad("physics_dt", "must divide the 0.05 s control period and be <= 0.01 s")
+    if cfg.ft_cutoff_hz >= 0.5 / cfg.physics_dt:
+        raise bad("ft_cutoff_hz", f"must be below the Nyquist rate {0.5 / cfg.physics_dt} Hz")
 
 
 @dataclass(frozen=True)
@@ -94,18 +123,7 @@ class PegInHoleConfig:
         def bad(name: str, msg: str) -> ConfigError:
             return ConfigError(f"PegInHole-v0: {name}={getattr(self, name)!r} {msg}")
 
-        def number(v: Any) -> bool:
-            return isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
-
-        for f in fields(self):  # types first: "wide" for a float must name the field, not numpy
-            v = getattr(self, f.name)
-            if f.type == "float" and not number(v):
-                raise bad(f.name, f"must be a number (default {f.default!r})")
-            if f.type == "bool" and not isinstance(v, (bool, np.bool_)):
-                raise bad(f.name, "must be true or false")
-            if f.type == "tuple[float, float]" and not (
-                    isinstance(v, (tuple, list)) and len(v) == 2 and all(map(number, v))):
-                raise bad(f.name, f"must be a pair of numbers (default {list(f.default)!r})")
+        check_types(self, bad)  # types first: "wide" for a float must name the field, not numpy
 
         if not isinstance(self.horizon, (int, np.integer)) or self.horizon < 1:
             raise bad("horizon", "must be a positive integer number of steps")
@@ -152,9 +170,5 @@ class PegInHoleConfig:
             raise bad("start_offset", "must be in [0, 0.1] m")
         if self.success_tolerance >= self.hole_depth:
             raise bad("success_tolerance", "must be smaller than hole_depth")
-        steps = (1.0 / 20.0) / self.physics_dt
-        if abs(steps - round(steps)) > 1e-6 or self.physics_dt > 0.01:
-            raise bad("physics_dt", "must divide the 0.05 s control period and be <= 0.01 s")
-        if self.ft_cutoff_hz >= 0.5 / self.physics_dt:
-            raise bad("ft_cutoff_hz", f"must be below the Nyquist rate {0.5 / self.physics_dt} Hz")
+        check_timing(self, bad)
         return self

@@ -25,16 +25,25 @@ from typing import Any, ClassVar
 
 import numpy as np
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
-from robosuite.models.arenas import TableArena
-from robosuite.models.objects import CapsuleObject
 from robosuite.models.tasks import ManipulationTask
-from robosuite.utils.mjcf_utils import array_to_string, find_elements
+from robosuite.utils.mjcf_utils import array_to_string
 
 from repbench.errors import ConfigError
-from repbench_tasks.config import TABLE_TOP_Z
+from repbench_tasks.config import TABLE_TOP_Z, check_timing, check_types
 from repbench_tasks.env import N_ARM, WristTaskEnv
-from repbench_tasks.press_env import check_timing, check_types
-from repbench_tasks.sim import TABLE_FULL_SIZE, TABLE_OFFSET, WristSensing, osc_position_controller
+from repbench_tasks.sim import (
+    ROD_RADIUS,
+    ROD_TIP_IN_SITE,
+    TABLE_FULL_SIZE,
+    TABLE_OFFSET,
+    WristSensing,
+    exclude_finger_contacts,
+    hand_rod,
+    osc_position_controller,
+    rod_center_in_eef,
+    table_arena,
+    weld_in_hand,
+)
 
 TASK_ID = "Door-v0"
 START_KINDS = ("above", "engaged")
@@ -52,8 +61,6 @@ RING_XY = (-(DOOR_T + RING_HALF + RING_WALL), -(DOOR_W - 0.03))
 #: Engagement point: the ring's centre, this far below the door's top (m).
 ENGAGE_DEPTH = 0.015
 #: The rod: capsule radius, tip distance below the grip site (m).
-ROD_RADIUS = 0.012
-ROD_TIP_IN_SITE = 0.09
 #: Layout of z°.
 Z_ANGLE = 2 * N_ARM
 Z_ANGLE_VEL = 2 * N_ARM + 1
@@ -239,31 +246,16 @@ class DoorSim(WristSensing, ManipulationEnv):
     def _load_model(self) -> None:
         super()._load_model()
         robot_model = self.robots[0].robot_model
-        robot_model.set_base_xpos(robot_model.base_xpos_offset["table"](self.table_full_size[0]))
-        arena = TableArena(table_full_size=self.table_full_size,
-                           table_friction=(1.0, 5e-3, 1e-4), table_offset=self.table_offset)
-        arena.set_origin([0, 0, 0])
+        arena = table_arena(robot_model, self.table_full_size, self.table_offset)
 
-        length = ROD_TIP_IN_SITE + 0.02  # the rod's top sits 2 cm inside the hand
-        self.rod = CapsuleObject(name="rod", size=[ROD_RADIUS, length / 2 - ROD_RADIUS],
-                                 rgba=[0.85, 0.55, 0.15, 1], joints=None, obj_type="all",
-                                 density=500.0, friction=(0.5, 0.005, 0.0001))
-        rod_obj = self.rod.get_obj()
-        rod_obj.set("pos", array_to_string([0, 0, length / 2 - 0.02]))
-        eef_body = find_elements(root=robot_model.worldbody, tags="body",
-                                 attribs={"name": "gripper0_right_eef"}, return_first=True)
-        eef_body.append(rod_obj)
+        self.rod = hand_rod("rod", friction=(0.5, 0.005, 0.0001))
+        weld_in_hand(robot_model, self.rod.get_obj(), rod_center_in_eef())
         arena.worldbody.append(self._cabinet_xml())
 
         self.model = ManipulationTask(mujoco_arena=arena, mujoco_robots=[robot_model])
         self._set_model_timestep()
         self.model.merge_assets(self.rod)
-        contact = find_elements(root=self.model.root, tags="contact", return_first=True)
-        if contact is None:
-            contact = ET.SubElement(self.model.root, "contact")
-        for finger in ("gripper0_right_leftfinger", "gripper0_right_rightfinger",
-                       "gripper0_right_finger_joint1_tip", "gripper0_right_finger_joint2_tip"):
-            ET.SubElement(contact, "exclude", body1=self.rod.root_body, body2=finger)
+        contact = exclude_finger_contacts(self.model, self.rod.root_body)
         ET.SubElement(contact, "exclude", body1="door_frame", body2="door_leaf")
 
     def _cabinet_xml(self) -> ET.Element:

@@ -24,20 +24,30 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
-from robosuite.models.arenas import TableArena
-from robosuite.models.objects import BoxObject, CapsuleObject
+from robosuite.models.objects import BoxObject
 from robosuite.models.tasks import ManipulationTask
-from robosuite.utils.mjcf_utils import array_to_string, find_elements
+from robosuite.utils.mjcf_utils import array_to_string
 
 from repbench.errors import ConfigError
-from repbench_tasks.config import TABLE_TOP_Z
+from repbench_tasks.config import TABLE_TOP_Z, check_timing, check_types
 from repbench_tasks.env import N_ARM, WristTaskEnv
-from repbench_tasks.sim import TABLE_FULL_SIZE, TABLE_OFFSET, WristSensing, osc_position_controller
+from repbench_tasks.sim import (
+    ROD_TIP_IN_SITE,
+    TABLE_FULL_SIZE,
+    TABLE_OFFSET,
+    WristSensing,
+    exclude_finger_contacts,
+    hand_rod,
+    osc_position_controller,
+    rod_center_in_eef,
+    table_arena,
+    weld_in_hand,
+)
 
 TASK_ID = "SurfacePress-v0"
 START_KINDS = ("above", "pressed")
@@ -46,8 +56,6 @@ ROBOT_VIEWS = ("proprio", "tip")
 #: Planar position of the plate's centre on the table (m).
 PLATE_XY = (0.0, 0.0)
 #: The pusher rod: capsule radius, length below the grip site to the tip (m).
-ROD_RADIUS = 0.012
-ROD_TIP_IN_SITE = 0.09
 #: Layout of z°.
 Z_SETPOINT = slice(2 * N_ARM, 2 * N_ARM + 3)
 Z_PLATE = 2 * N_ARM + 3
@@ -191,33 +199,6 @@ class SurfacePressConfig:
         return self
 
 
-def check_types(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
-    """Type checks of a task config's float/bool/pair fields (before any arithmetic)."""
-    def number(v: Any) -> bool:
-        return isinstance(v, (int, float, np.number)) and not isinstance(v, bool)
-
-    for f in fields(cfg):
-        v = getattr(cfg, f.name)
-        if f.type == "float" and not number(v):
-            raise bad(f.name, f"must be a number (default {f.default!r})")
-        if f.type == "bool" and not isinstance(v, (bool, np.bool_)):
-            raise bad(f.name, "must be true or false")
-        if f.type == "str" and not isinstance(v, str):
-            raise bad(f.name, f"must be a string (default {f.default!r})")
-        if f.type == "tuple[float, float]" and not (
-                isinstance(v, (tuple, list)) and len(v) == 2 and all(map(number, v))):
-            raise bad(f.name, f"must be a pair of numbers (default {list(f.default)!r})")
-
-
-def check_timing(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
-    """The physics step divides the 20 Hz control period; the F/T cut-off is below Nyquist."""
-    steps = (1.0 / 20.0) / cfg.physics_dt
-    if abs(steps - round(steps)) > 1e-6 or cfg.physics_dt > 0.01:
-        raise bad("physics_dt", "must divide the 0.05 s control period and be <= 0.01 s")
-    if cfg.ft_cutoff_hz >= 0.5 / cfg.physics_dt:
-        raise bad("ft_cutoff_hz", f"must be below the Nyquist rate {0.5 / cfg.physics_dt} Hz")
-
-
 class PressSim(WristSensing, ManipulationEnv):
     """Panda with a pusher rod and a spring-mounted plate on robosuite's table arena.
 
@@ -250,20 +231,10 @@ class PressSim(WristSensing, ManipulationEnv):
     def _load_model(self) -> None:
         super()._load_model()
         robot_model = self.robots[0].robot_model
-        robot_model.set_base_xpos(robot_model.base_xpos_offset["table"](self.table_full_size[0]))
-        arena = TableArena(table_full_size=self.table_full_size,
-                           table_friction=(1.0, 5e-3, 1e-4), table_offset=self.table_offset)
-        arena.set_origin([0, 0, 0])
+        arena = table_arena(robot_model, self.table_full_size, self.table_offset)
 
-        length = ROD_TIP_IN_SITE + 0.02  # the rod's top sits 2 cm inside the hand
-        self.rod = CapsuleObject(name="pusher", size=[ROD_RADIUS, length / 2 - ROD_RADIUS],
-                                 rgba=[0.85, 0.55, 0.15, 1], joints=None, obj_type="all",
-                                 density=500.0, friction=(0.8, 0.005, 0.0001))
-        rod_obj = self.rod.get_obj()
-        rod_obj.set("pos", array_to_string([0, 0, length / 2 - 0.02]))
-        eef_body = find_elements(root=robot_model.worldbody, tags="body",
-                                 attribs={"name": "gripper0_right_eef"}, return_first=True)
-        eef_body.append(rod_obj)
+        self.rod = hand_rod("pusher", friction=(0.8, 0.005, 0.0001))
+        weld_in_hand(robot_model, self.rod.get_obj(), rod_center_in_eef())
 
         t = self.plate_thickness
         volume = (2 * self.plate_half) ** 2 * t
@@ -289,12 +260,7 @@ class PressSim(WristSensing, ManipulationEnv):
         self._set_model_timestep()
         self.model.merge_assets(self.rod)
         self.model.merge_assets(self.plate)
-        contact = find_elements(root=self.model.root, tags="contact", return_first=True)
-        if contact is None:
-            contact = ET.SubElement(self.model.root, "contact")
-        for finger in ("gripper0_right_leftfinger", "gripper0_right_rightfinger",
-                       "gripper0_right_finger_joint1_tip", "gripper0_right_finger_joint2_tip"):
-            ET.SubElement(contact, "exclude", body1=self.rod.root_body, body2=finger)
+        exclude_finger_contacts(self.model, self.rod.root_body)
 
     def plate_z0(self) -> float:
         """World height of the plate body's centre at the nominal rest height."""

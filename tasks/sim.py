@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.models.arenas import TableArena
-from robosuite.models.objects import BoxObject
+from robosuite.models.objects import BoxObject, CapsuleObject
 from robosuite.models.objects.generated_objects import CompositeObject
 from robosuite.models.tasks import ManipulationTask
 from robosuite.utils.mjcf_utils import array_to_string, find_elements
@@ -35,6 +35,58 @@ CONTROL_FREQ = 20
 
 #: Names of the robot's arm bodies whose visual geoms the wrist camera never sees.
 ARM_BODY_PREFIXES = ("robot0_link", "robot0_base", "mount0_", "fixed_mount0_")
+
+
+#: the hand's finger bodies: a tool welded in the hand never collides with them
+FINGER_BODIES = ("gripper0_right_leftfinger", "gripper0_right_rightfinger",
+                 "gripper0_right_finger_joint1_tip", "gripper0_right_finger_joint2_tip")
+#: a rod welded in the hand (SurfacePress-v0, Door-v0): radius, and tip below the grip site (m)
+ROD_RADIUS = 0.012
+ROD_TIP_IN_SITE = 0.09
+
+
+def table_arena(robot_model: Any, table_full_size: tuple[float, float, float],
+                table_offset: np.ndarray) -> TableArena:
+    """robosuite's table arena, with the robot's base placed at the table (every task's)."""
+    robot_model.set_base_xpos(robot_model.base_xpos_offset["table"](table_full_size[0]))
+    arena = TableArena(table_full_size=table_full_size, table_friction=(1.0, 5e-3, 1e-4),
+                       table_offset=table_offset)
+    arena.set_origin([0, 0, 0])
+    return arena
+
+
+def weld_in_hand(robot_model: Any, obj: ET.Element, center_in_eef: float) -> None:
+    """Attach an object's body to the end effector, its centre ``center_in_eef`` m along the
+    hand's axis (the object moves with the hand: no joint)."""
+    obj.set("pos", array_to_string([0, 0, center_in_eef]))
+    eef_body = find_elements(root=robot_model.worldbody, tags="body",
+                             attribs={"name": "gripper0_right_eef"}, return_first=True)
+    eef_body.append(obj)
+
+
+def hand_rod(name: str, friction: tuple[float, float, float]) -> CapsuleObject:
+    """The rod a press or door task holds: its top 2 cm inside the hand, its tip
+    ``ROD_TIP_IN_SITE`` below the grip site."""
+    length = ROD_TIP_IN_SITE + 0.02
+    return CapsuleObject(name=name, size=[ROD_RADIUS, length / 2 - ROD_RADIUS],
+                         rgba=[0.85, 0.55, 0.15, 1], joints=None, obj_type="all",
+                         density=500.0, friction=friction)
+
+
+def rod_center_in_eef() -> float:
+    """Where :func:`hand_rod`'s centre sits along the hand's axis (m)."""
+    return (ROD_TIP_IN_SITE + 0.02) / 2 - 0.02
+
+
+def exclude_finger_contacts(model: ManipulationTask, body: str) -> ET.Element:
+    """No contacts between ``body`` (the tool in the hand) and the fingers; returns the model's
+    ``<contact>`` element for further exclusions."""
+    contact = find_elements(root=model.root, tags="contact", return_first=True)
+    if contact is None:
+        contact = ET.SubElement(model.root, "contact")
+    for finger in FINGER_BODIES:
+        ET.SubElement(contact, "exclude", body1=body, body2=finger)
+    return contact
 
 
 def osc_position_controller(action_scale: float) -> dict[str, Any]:
@@ -266,22 +318,15 @@ class PegInHoleSim(WristSensing, ManipulationEnv):
     def _load_model(self) -> None:
         super()._load_model()
         robot_model = self.robots[0].robot_model
-        robot_model.set_base_xpos(robot_model.base_xpos_offset["table"](self.table_full_size[0]))
-        arena = TableArena(table_full_size=self.table_full_size,
-                           table_friction=(1.0, 5e-3, 1e-4), table_offset=self.table_offset)
-        arena.set_origin([0, 0, 0])
+        arena = table_arena(robot_model, self.table_full_size, self.table_offset)
 
         hw, length = self.peg_half_width, self.peg_length
         self.peg = BoxObject(name="peg", size=[hw, hw, length / 2], rgba=[0.85, 0.55, 0.15, 1],
                              joints=None, obj_type="all", density=500.0,
                              friction=(0.3, 0.005, 0.0001))
-        peg_obj = self.peg.get_obj()
         # The peg's top sits 2 cm inside the hand (between the finger pads).
         self.peg_center_in_eef = length / 2 - 0.02
-        peg_obj.set("pos", array_to_string([0, 0, self.peg_center_in_eef]))
-        eef_body = find_elements(root=robot_model.worldbody, tags="body",
-                                 attribs={"name": "gripper0_right_eef"}, return_first=True)
-        eef_body.append(peg_obj)
+        weld_in_hand(robot_model, self.peg.get_obj(), self.peg_center_in_eef)
 
         self.hole = hole_walls("hole", hw + self.clearance, self.wall_thickness, self.hole_depth)
         hole_obj = self.hole.get_obj()
@@ -292,12 +337,7 @@ class PegInHoleSim(WristSensing, ManipulationEnv):
         self._set_model_timestep()
         self.model.merge_assets(self.peg)
         self.model.merge_assets(self.hole)
-        contact = find_elements(root=self.model.root, tags="contact", return_first=True)
-        if contact is None:
-            contact = ET.SubElement(self.model.root, "contact")
-        for finger in ("gripper0_right_leftfinger", "gripper0_right_rightfinger",
-                       "gripper0_right_finger_joint1_tip", "gripper0_right_finger_joint2_tip"):
-            ET.SubElement(contact, "exclude", body1=self.peg.root_body, body2=finger)
+        exclude_finger_contacts(self.model, self.peg.root_body)
 
     def _setup_references(self) -> None:
         super()._setup_references()
