@@ -235,8 +235,15 @@ def _claims_section(claims: pd.DataFrame | None) -> list[str]:
             "<b>inconclusive</b> = right side, interval includes 0. Correlations are over the "
             "learned encoders, as in the paper. The last rows answer the question the paper "
             "left open: which metric predicts return best.</p>",
-            _verdict_table(claims, "claims", [("agent", 0), ("claim", 220), ("source", 0),
+            _verdict_table(claims, "claims", [*_task_column(claims), ("agent", 0),
+                                              ("claim", 220), ("source", 0),
                                               ("statistic", 200)])]
+
+
+def _task_column(df: pd.DataFrame) -> list[tuple[str, int]]:
+    """The ``task`` column of a verdict table, where its rows come from several tasks (each
+    claim is checked per task; without it a two-task page shows each claim twice, unlabelled)."""
+    return [("task", 0)] if "task" in df and df["task"].nunique() > 1 else []
 
 
 def _robustness_section(checks: pd.DataFrame | None) -> list[str]:

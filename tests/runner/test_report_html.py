@@ -71,6 +71,25 @@ def test_page_and_csv_carry_the_checked_claims(tmp_path: Path) -> None:
     assert html.index("Paper claims, checked") < html.index("Which encoder is best?")
 
 
+def test_claims_table_names_the_task_when_there_are_several(tmp_path: Path) -> None:
+    one = (write_leaderboards(_results(), tmp_path / "one") / "index.html").read_text()
+    res = _results()
+    res.rl_rows = [{**r, "train_steps": 100} for r in res.rl_rows]  # as real RL rows have
+    for rows in (res.encoder_rows, res.metric_rows, res.rl_rows):
+        rows.extend([{**r, "task": "U-v0"} for r in rows])
+    two = (write_leaderboards(res, tmp_path / "two") / "index.html").read_text()
+
+    def claims_head(html: str) -> list[str]:
+        table = html[html.index("<table id='claims'>"):]
+        return re.findall(r"<th class='txt'>([^<]*)</th>", table[:table.index("</thead>")])
+
+    assert claims_head(one)[:2] == ["agent", "claim"]
+    assert claims_head(two)[:3] == ["task", "agent", "claim"]
+    body = two[two.index("<table id='claims'>"):]
+    body = body[:body.index("</table>")]
+    assert body.count("<td class='txt'>T-v0</td>") == body.count("<td class='txt'>U-v0</td>") > 0
+
+
 def test_partial_runs_say_so_at_the_top(tmp_path: Path) -> None:
     write_leaderboards(_results(), tmp_path / "full")
     assert "Partial results" not in (tmp_path / "full" / "index.html").read_text()
