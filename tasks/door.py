@@ -62,7 +62,7 @@ class DoorTask(RobosuiteTask):
                  start_xyz: tuple[float, float] = (-0.02, -0.07), start_offset: float = 0.01,
                  start_height: float = 0.07, action_scale: float = 0.02,
                  physics_dt: float = 0.005, ft_cutoff_hz: float = 10.0,
-                 robot_view: str = "tip") -> None:
+                 robot_view: str = "tip", reach_reward: str = "distance") -> None:
         self.horizon = horizon
         self.grid_size = grid_size
         self.shift_range = tuple(shift_range)
@@ -83,6 +83,7 @@ class DoorTask(RobosuiteTask):
         self.physics_dt = physics_dt
         self.ft_cutoff_hz = ft_cutoff_hz
         self.robot_view = robot_view
+        self.reach_reward = reach_reward
         self.config()  # validate now: a bad value fails at construction
 
     def config(self, **overrides: Any) -> DoorConfig:

@@ -47,6 +47,7 @@ from repbench_tasks.sim import (
 
 TASK_ID = "Door-v0"
 START_KINDS = ("above", "engaged")
+REACH_REWARDS = ("distance", "staged")
 CONFIG_SAMPLING = ("grid", "off_grid")
 ROBOT_VIEWS = ("proprio", "tip")
 #: Nominal hinge axis on the table (world x, y; m). The door spans -y from it, facing -x (the
@@ -60,6 +61,9 @@ RING_HALF, RING_WALL, RING_DEPTH = 0.017, 0.006, 0.03
 RING_XY = (-(DOOR_T + RING_HALF + RING_WALL), -(DOOR_W - 0.03))
 #: Engagement point: the ring's centre, this far below the door's top (m).
 ENGAGE_DEPTH = 0.015
+#: The staged reach reward's alignment zone about the ring's mouth (m): within this of its
+#: axis and below this height above the door's top (the peg-in-hole's eps_align, eps_height).
+ALIGN_XY, ALIGN_HEIGHT = 0.01, 0.02
 #: The rod: capsule radius, tip distance below the grip site (m).
 #: Layout of z°.
 Z_ANGLE = 2 * N_ARM
@@ -117,6 +121,10 @@ class DoorConfig:
     """Cut-off of the 2nd-order Butterworth low-pass on the wrist force/torque."""
     robot_view: str = "tip"
     """What the RL agent observes of the robot beside μ_z: ``"tip"`` or ``"proprio"``."""
+    reach_reward: str = "distance"
+    """Reward before the rod is in the ring: ``"distance"`` (to the engagement point) or
+    ``"staged"`` (the peg-in-hole's reach and alignment stages about the ring's mouth, which pay
+    more above the ring than on the door's top beside it); see :func:`door_reward`."""
 
     def config_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Corners of the configuration box in (hinge shift, yaw)."""
@@ -153,6 +161,8 @@ class DoorConfig:
             raise bad("start", f"must be one of {START_KINDS}")
         if self.robot_view not in ROBOT_VIEWS:
             raise bad("robot_view", f"must be one of {ROBOT_VIEWS}")
+        if self.reach_reward not in REACH_REWARDS:
+            raise bad("reach_reward", f"must be one of {REACH_REWARDS}")
         for name in ("action_scale", "physics_dt", "ft_cutoff_hz", "success_angle",
                      "start_height"):
             v = getattr(self, name)
@@ -529,8 +539,16 @@ def door_reward(tip_offset: np.ndarray, angle: float, engaged: bool, cfg: DoorCo
                 ) -> tuple[float, bool]:
     """Dense shaped reward and success of one step.
 
-    * reach (rod not in the ring): ``1 - tanh(10 d)`` in ``(0, 1]``, ``d`` the tip's distance
-      from the engagement point;
+    * reach (rod not in the ring), ``reach_reward="distance"``: ``1 - tanh(10 d)`` in
+      ``(0, 1]``, ``d`` the tip's distance from the engagement point;
+    * reach, ``reach_reward="staged"``: the peg-in-hole's stages
+      (:mod:`repbench_tasks.rewards`) about the ring's mouth ``m`` (the engagement point raised
+      to the door's top): alignment, tip within ``ALIGN_XY`` of the ring's axis and below
+      ``ALIGN_HEIGHT`` above ``m``, ``1.5 - d_xy / (2 ALIGN_XY)`` in ``(1, 1.5]`` (below the
+      engaged reward: going in pays); otherwise
+      ``1 - (tanh(10 |s|) + tanh(10 d_xy)) / 2`` in ``(0, 1]`` with ``s`` the tip minus ``m``;
+      so hovering over the ring pays more than resting on the door's top beside it, which the
+      distance reward pays nearly in full;
     * engaged: ``2 + 6 * angle / success_angle`` in ``[2, 8)``;
     * open (angle >= ``success_angle``, however it got there): ``10`` (success).
     """
@@ -538,5 +556,11 @@ def door_reward(tip_offset: np.ndarray, angle: float, engaged: bool, cfg: DoorCo
         return 10.0, True
     if engaged:
         return 2.0 + 6.0 * max(angle, 0.0) / cfg.success_angle, False
+    if cfg.reach_reward == "staged":
+        s = np.asarray(tip_offset, np.float64) - np.array([0.0, 0.0, ENGAGE_DEPTH])
+        dxy = float(np.linalg.norm(s[:2]))
+        if dxy < ALIGN_XY and s[2] < ALIGN_HEIGHT:
+            return 1.5 - 0.5 * dxy / ALIGN_XY, False
+        return 1.0 - 0.5 * float(np.tanh(10.0 * np.linalg.norm(s)) + np.tanh(10.0 * dxy)), False
     d = float(np.linalg.norm(tip_offset))
     return 1.0 - float(np.tanh(10.0 * d)), False

@@ -13,6 +13,7 @@ from repbench.errors import ConfigError, DataError
 from repbench.testing import check_task
 from repbench_tasks.door import CONFIG, GYM_ID, TASK_STATE_DIM, DoorTask
 from repbench_tasks.door_env import (
+    ENGAGE_DEPTH,
     OFF_GRID_DISTANCE,
     TRUE_STATE_DIM,
     Z_SHIFT,
@@ -59,6 +60,7 @@ def rollout(env: DoorEnv, policy, reset: dict) -> tuple[float, bool, np.ndarray]
     ("success_angle", 2.0, "success_angle"),
     ("action_scale", "big", "action_scale='big' must be a number"),
     ("physics_dt", 0.003, "physics_dt"),
+    ("reach_reward", "sparse", r"reach_reward='sparse' must be one of \('distance', 'staged'\)"),
 ])
 def test_bad_config_names_the_field(field: str, value, match: str) -> None:
     with pytest.raises(ConfigError, match=match):
@@ -185,6 +187,24 @@ def test_reward_stages_increase_towards_an_open_door() -> None:
     done = door_reward(np.zeros(3), 0.3, True, cfg)
     assert 0 < far[0] < near[0] <= 1 < hooked[0] == 2 < opening[0] < 8 < done[0] == 10
     assert pushed[0] < 1 and done[1] and not opening[1]
+
+
+def test_staged_reach_pays_more_over_the_ring_than_beside_it() -> None:
+    """The distance reward's trap, and the staged reward that removes it: a tip resting on the
+    door's top 1.5 cm beside the ring's mouth against one hovering 1.5 cm over it (offsets from
+    the engagement point, which lies ENGAGE_DEPTH below the mouth)."""
+    beside = np.array([0.015, 0.0, ENGAGE_DEPTH])
+    over = np.array([0.0, 0.0, ENGAGE_DEPTH + 0.015])
+    distance, staged = DoorConfig(), DoorConfig(reach_reward="staged")
+    assert door_reward(beside, 0.0, False, distance)[0] > door_reward(over, 0.0, False, distance)[0]
+    # known values: reach 1 - (tanh(10 |s|) + tanh(10 d_xy)) / 2, alignment 1.5 - d_xy / 0.02
+    assert door_reward(beside, 0.0, False, staged)[0] == pytest.approx(1 - np.tanh(0.15))
+    assert door_reward(over, 0.0, False, staged)[0] == pytest.approx(1.5)
+    at_mouth = np.array([0.005, 0.0, ENGAGE_DEPTH])
+    assert door_reward(at_mouth, 0.0, False, staged)[0] == pytest.approx(1.25)
+    far = door_reward(np.array([0.05, 0.0, 0.1]), 0.0, False, staged)[0]
+    hooked = door_reward(np.zeros(3), 0.0, True, staged)[0]
+    assert 0 < far < door_reward(beside, 0.0, False, staged)[0] < 1 < 1.5 < hooked == 2
 
 
 # -- known results of the scripted controllers ---------------------------------------------------
