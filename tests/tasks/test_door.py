@@ -204,7 +204,10 @@ def test_staged_reach_pays_more_over_the_ring_than_beside_it() -> None:
     assert door_reward(at_mouth, 0.0, False, staged)[0] == pytest.approx(1.25)
     far = door_reward(np.array([0.05, 0.0, 0.1]), 0.0, False, staged)[0]
     hooked = door_reward(np.zeros(3), 0.0, True, staged)[0]
-    assert 0 < far < door_reward(beside, 0.0, False, staged)[0] < 1 < 1.5 < hooked == 2
+    stages = [far, door_reward(beside, 0.0, False, staged)[0], 1.0,
+              door_reward(at_mouth, 0.0, False, staged)[0],
+              door_reward(over, 0.0, False, staged)[0], hooked]
+    assert stages[0] > 0 and stages == sorted(set(stages)) and hooked == 2
 
 
 # -- known results of the scripted controllers ---------------------------------------------------
