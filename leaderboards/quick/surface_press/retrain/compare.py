@@ -2,9 +2,10 @@
 metrics move?
 
 Encoder training is bit-reproducible on one machine but not across CPUs (torch picks AVX2 or
-AVX-512 kernels). ``leaderboards/quick/surface_press/records`` were made on an AVX-512 machine
-(Zen 4); a second store of the same suite, built from an empty store on another machine, holds
-the same stage keys with other weights. This compares the two record sets stage by stage:
+AVX-512 kernels). ``leaderboards/quick/surface_press/partial_10k/records`` were made on an
+AVX-512 machine (Zen 4); a second store of the same suite, built from an empty store on
+another machine, holds the same stage keys with other weights. This compares the two record
+sets stage by stage:
 
     python leaderboards/quick/surface_press/retrain/compare.py --b /work/store_press
 
@@ -50,7 +51,8 @@ def _records(where: str) -> list[dict]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--a", default=str(BOARD / "records"), help="first training's records")
+    first = BOARD / "partial_10k" / "records"
+    ap.add_argument("--a", default=str(first), help="first training's records")
     ap.add_argument("--b", required=True, help="second training: a store or a records folder")
     ap.add_argument("--suite", default=str(BOARD / "suite_20k.toml"))
     args = ap.parse_args()
