@@ -43,6 +43,10 @@ FINGER_BODIES = ("gripper0_right_leftfinger", "gripper0_right_rightfinger",
 #: a rod welded in the hand (SurfacePress-v0, Door-v0): radius, and tip below the grip site (m)
 ROD_RADIUS = 0.012
 ROD_TIP_IN_SITE = 0.09
+#: how far the rod reaches into the hand above the grip site (m)
+ROD_IN_HAND = 0.02
+#: the rod's whole length (m)
+ROD_LENGTH = ROD_TIP_IN_SITE + ROD_IN_HAND
 
 
 def table_arena(robot_model: Any, table_full_size: tuple[float, float, float],
@@ -65,17 +69,16 @@ def weld_in_hand(robot_model: Any, obj: ET.Element, center_in_eef: float) -> Non
 
 
 def hand_rod(name: str, friction: tuple[float, float, float]) -> CapsuleObject:
-    """The rod a press or door task holds: its top 2 cm inside the hand, its tip
+    """The rod a press or door task holds: its top ``ROD_IN_HAND`` inside the hand, its tip
     ``ROD_TIP_IN_SITE`` below the grip site."""
-    length = ROD_TIP_IN_SITE + 0.02
-    return CapsuleObject(name=name, size=[ROD_RADIUS, length / 2 - ROD_RADIUS],
+    return CapsuleObject(name=name, size=[ROD_RADIUS, ROD_LENGTH / 2 - ROD_RADIUS],
                          rgba=[0.85, 0.55, 0.15, 1], joints=None, obj_type="all",
                          density=500.0, friction=friction)
 
 
 def rod_center_in_eef() -> float:
     """Where :func:`hand_rod`'s centre sits along the hand's axis (m)."""
-    return (ROD_TIP_IN_SITE + 0.02) / 2 - 0.02
+    return ROD_LENGTH / 2 - ROD_IN_HAND
 
 
 def exclude_finger_contacts(model: ManipulationTask, body: str) -> ET.Element:
