@@ -31,6 +31,7 @@ from robosuite.utils.mjcf_utils import array_to_string
 from repbench.errors import ConfigError
 from repbench_tasks.config import TABLE_TOP_Z, check_timing, check_types
 from repbench_tasks.env import N_ARM, WristTaskEnv
+from repbench_tasks.rewards import reach_reward
 from repbench_tasks.sim import (
     ROD_RADIUS,
     ROD_TIP_IN_SITE,
@@ -561,6 +562,6 @@ def door_reward(tip_offset: np.ndarray, angle: float, engaged: bool, cfg: DoorCo
         dxy = float(np.linalg.norm(s[:2]))
         if dxy < ALIGN_XY and s[2] < ALIGN_HEIGHT:
             return 1.5 - 0.5 * dxy / ALIGN_XY, False
-        return 1.0 - 0.5 * float(np.tanh(10.0 * np.linalg.norm(s)) + np.tanh(10.0 * dxy)), False
+        return reach_reward(s), False
     d = float(np.linalg.norm(tip_offset))
     return 1.0 - float(np.tanh(10.0 * d)), False

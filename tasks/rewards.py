@@ -66,8 +66,14 @@ def staged_reward(s: np.ndarray, p: RewardParams) -> tuple[float, bool]:
         return 10.0, True
     if stage == "insert":
         return 4.0 + 2.0 * min(depth / p.hole_depth, 1.0), False
-    dxy = float(np.linalg.norm(s[:2]))
     if stage == "align":
-        return 2.0 - dxy / p.eps_align, False
-    d = float(np.linalg.norm(s))
-    return p.c_r - p.c_r / 2 * (np.tanh(p.lam * d) + np.tanh(p.lam * dxy)), False
+        return 2.0 - float(np.linalg.norm(s[:2])) / p.eps_align, False
+    return reach_reward(s, p.c_r, p.lam), False
+
+
+def reach_reward(s: np.ndarray, c_r: float = 1.0, lam: float = 10.0) -> float:
+    """The reach stage's reward ``c_r - c_r / 2 * (tanh(lam ||s||) + tanh(lam ||s_xy||))`` in
+    ``(0, c_r]`` for the tip offset ``s`` (the peg-in-hole's; Door-v0's staged reach too)."""
+    s = np.asarray(s, dtype=np.float64)
+    d, dxy = float(np.linalg.norm(s)), float(np.linalg.norm(s[:2]))
+    return float(c_r - c_r / 2 * (np.tanh(lam * d) + np.tanh(lam * dxy)))

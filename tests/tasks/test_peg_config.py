@@ -8,7 +8,7 @@ from scipy import signal
 
 from repbench.errors import ConfigError
 from repbench_tasks.peg_in_hole import PegInHoleTask
-from repbench_tasks.rewards import RewardParams, stage_of, staged_reward
+from repbench_tasks.rewards import RewardParams, reach_reward, stage_of, staged_reward
 from repbench_tasks.sensing import LowPass, weight_wrench
 
 
@@ -56,6 +56,15 @@ def test_reward_stages_increase_along_an_insertion() -> None:
     assert 0 < far < near <= 1 < align <= 2 < 4 <= shallow < deep < 6 < done == 10 and ok
     # below the opening but outside it (beside the hole) is not insertion
     assert staged_reward(np.array([0.05, 0.0, -0.02]), p)[0] < 1
+
+
+def test_reach_reward_known_values() -> None:
+    # on the opening it pays c_r; 3 cm straight above: c_r - c_r/2 tanh(0.3) (the xy term is 0)
+    assert reach_reward(np.zeros(3), c_r=2.0) == 2.0
+    assert reach_reward(np.array([0.0, 0.0, 0.03])) == pytest.approx(1 - np.tanh(0.3) / 2)
+    # 3 cm sideways costs both terms, so hovering above pays more than resting beside
+    assert reach_reward(np.array([0.03, 0.0, 0.0])) == pytest.approx(1 - np.tanh(0.3))
+    assert reach_reward(np.array([5.0, 0.0, 0.0]), lam=10.0) < 1e-12
 
 
 @pytest.mark.parametrize("offset_mm", [4.5, 8.0, 13.0])
