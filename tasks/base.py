@@ -20,12 +20,15 @@ import numpy as np
 from repbench.dataset import FT, IMAGE, PROPRIO, Dataset
 from repbench.errors import ConfigError
 from repbench.task import Policy, Task
+from repbench_tasks.config import off_grid_point
 
 #: Layout of every robosuite task's ``proprio``: joint positions (7), joint velocities (7),
 #: tool-point position (3), tool-point linear velocity (3).
 TIP_POSITION = slice(14, 17)
 TIP_VELOCITY = slice(17, 20)
 ROBOT_VIEWS = ("proprio", "tip")
+#: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` (as in ``repbench.rl``).
+EVAL_SEED_BASE = 10_000
 
 
 class RobosuiteTask(Task):
@@ -126,6 +129,43 @@ class RobosuiteTask(Task):
             gym.register(id=gym_id, entry_point=_GymFactory(cls), disable_env_checker=False)
 
 
+class BoxConfigTask(RobosuiteTask):
+    """A task whose per-episode configuration is a point of a 2-D box, drawn from a grid over it
+    (training data) or off the grid (held out); its config has ``config_box()`` and
+    ``grid_configs()``. Subclasses set ``eval_config_seed`` and ``off_grid_distance`` and say
+    how a point of the box becomes reset options (:meth:`box_options`)."""
+
+    #: Seed of the off-grid configurations of the evaluation episodes.
+    eval_config_seed: ClassVar[int]
+    #: Off-grid configurations lie at least this far from every grid point (box-side units).
+    off_grid_distance: ClassVar[float]
+
+    def box_options(self, x: np.ndarray) -> dict[str, float]:
+        """The reset options that put an episode at the box point ``x``."""
+        raise NotImplementedError
+
+    def evaluation_resets(self, n: int) -> list[dict[str, Any]]:
+        """``n`` fixed evaluation episodes: every grid configuration once (in order), then
+        configurations off the grid (at least ``off_grid_distance`` from every grid point),
+        each with its own reset seed ``EVAL_SEED_BASE + i``."""
+        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
+            raise ConfigError(f"{self.task_id}: evaluation episodes n={n!r} must be a positive "
+                              "int")
+        cfg = self.config()
+        grid = cfg.grid_configs()
+        lo, hi = cfg.config_box()
+        rng = np.random.default_rng(self.eval_config_seed)
+        resets: list[dict[str, Any]] = []
+        for i in range(n):
+            seed = EVAL_SEED_BASE + i
+            if i < len(grid):
+                resets.append({"seed": seed, "options": {"config_index": i}})
+                continue
+            x = off_grid_point(rng, grid, lo, hi, self.off_grid_distance)
+            resets.append({"seed": seed, "options": self.box_options(x)})
+        return resets
+
+
 class _GymFactory:
     """gymnasium entry point: constructor parameters (+ ``render_mode``) -> environment."""
 
@@ -139,17 +179,3 @@ class _GymFactory:
 
 def _jsonable(params: dict[str, Any]) -> dict[str, Any]:
     return {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()}
-
-
-def off_grid_point(rng: np.random.Generator, grid: np.ndarray, low: np.ndarray,
-                   high: np.ndarray, min_distance: float) -> np.ndarray:
-    """A point drawn uniformly in the box ``[low, high]`` and at least ``min_distance`` (in
-    units of the box's side per axis) from every ``grid`` point: a held-out configuration."""
-    low, high = np.asarray(low, np.float64), np.asarray(high, np.float64)
-    span = np.where(high > low, high - low, 1.0)
-    for _ in range(10_000):
-        x = rng.uniform(low, high)
-        if len(grid) <= 1 or np.min(np.linalg.norm((grid - x) / span, axis=1)) >= min_distance:
-            return x
-    raise ConfigError(f"no configuration at least {min_distance} from the grid in 10000 draws; "
-                      "use a coarser grid")

@@ -1,5 +1,8 @@
-"""Hyperparameters of the peg-in-hole task and their validation (one-line ``ConfigError``s), and
-the type and timing checks every task config shares (``check_types``, ``check_timing``)."""
+"""Hyperparameters of the peg-in-hole task and their validation (one-line ``ConfigError``s), the
+type and timing checks every task config shares (``check_types``, ``check_timing``), and the
+configuration box of the tasks whose per-episode configuration is a point in a 2-D box on a grid
+(SurfacePress-v0, Door-v0: ``box_grid``, ``off_grid_point``, ``pick_box_config``,
+``check_box_config``)."""
 
 from __future__ import annotations
 
@@ -22,6 +25,8 @@ START_KINDS = ("above", "inserted")
 HOLE_SAMPLING = ("grid", "uniform")
 #: What the RL agent sees of the robot beside μ_z (:meth:`PegInHoleTask.robot_state`).
 ROBOT_VIEWS = ("proprio", "tip")
+#: How a config-box task draws an episode's configuration: a grid point, or a point off the grid.
+CONFIG_SAMPLING = ("grid", "off_grid")
 
 
 def check_types(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
@@ -49,6 +54,64 @@ def check_timing(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
         raise bad("physics_dt", "must divide the 0.05 s control period and be <= 0.01 s")
     if cfg.ft_cutoff_hz >= 0.5 / cfg.physics_dt:
         raise bad("ft_cutoff_hz", f"must be below the Nyquist rate {0.5 / cfg.physics_dt} Hz")
+
+
+def box_grid(low: np.ndarray, high: np.ndarray, n: int) -> np.ndarray:
+    """The ``n x n`` grid over the 2-D box ``[low, high]``, row-major [n², 2]; with ``n == 1``
+    the box's centre."""
+    axes = [np.linspace(low[i], high[i], n) if n > 1 else np.array([(low[i] + high[i]) / 2])
+            for i in range(2)]
+    a, b = np.meshgrid(*axes, indexing="ij")
+    return np.stack([a.ravel(), b.ravel()], axis=1)
+
+
+def off_grid_point(rng: np.random.Generator, grid: np.ndarray, low: np.ndarray,
+                   high: np.ndarray, min_distance: float) -> np.ndarray:
+    """A point drawn uniformly in the box ``[low, high]`` and at least ``min_distance`` (in
+    units of the box's side per axis) from every ``grid`` point: a held-out configuration."""
+    low, high = np.asarray(low, np.float64), np.asarray(high, np.float64)
+    span = np.where(high > low, high - low, 1.0)
+    for _ in range(10_000):
+        x = rng.uniform(low, high)
+        if len(grid) <= 1 or np.min(np.linalg.norm((grid - x) / span, axis=1)) >= min_distance:
+            return x
+    raise ConfigError(f"no configuration at least {min_distance} from the grid in 10000 draws; "
+                      "use a coarser grid")
+
+
+def pick_box_config(options: dict[str, Any], grid: np.ndarray, low: np.ndarray,
+                    high: np.ndarray, sampling: str, rng: np.random.Generator,
+                    min_distance: float) -> tuple[float, float]:
+    """An episode's configuration when its reset ``options`` name none explicitly: grid point
+    ``options["config_index"]``, else a random grid point (``sampling="grid"``) or a point off
+    the grid (:func:`off_grid_point`)."""
+    if "config_index" in options:
+        idx = int(options["config_index"])
+        if not 0 <= idx < len(grid):
+            raise ValueError(f"reset option config_index={idx} must be in [0, {len(grid)})")
+        return float(grid[idx, 0]), float(grid[idx, 1])
+    if sampling == "grid":
+        idx = int(rng.integers(len(grid)))
+        return float(grid[idx, 0]), float(grid[idx, 1])
+    x = off_grid_point(rng, grid, low, high, min_distance)
+    return float(x[0]), float(x[1])
+
+
+def check_box_config(cfg: Any, bad: Callable[[str, str], ConfigError],
+                     integers: tuple[str, ...], choices: dict[str, tuple[str, ...]]) -> None:
+    """The checks every config-box task's config starts with: field types, ``integers``
+    positive, ``grid_size`` at most 50, ``config_sampling`` and each field of ``choices`` one of
+    its values."""
+    check_types(cfg, bad)
+    for name in integers:
+        v = getattr(cfg, name)
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+            raise bad(name, "must be a positive integer")
+    if cfg.grid_size > 50:
+        raise bad("grid_size", "must be an integer in [1, 50] (5 by default)")
+    for name, allowed in {"config_sampling": CONFIG_SAMPLING, **choices}.items():
+        if getattr(cfg, name) not in allowed:
+            raise bad(name, f"must be one of {allowed}")
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from repbench.dataset import PROPRIO, TRUE_STATE, as_observation_batch
-from repbench.errors import ConfigError, DataError
-from repbench_tasks.base import TIP_POSITION, TIP_VELOCITY, RobosuiteTask, off_grid_point
+from repbench.errors import DataError
+from repbench_tasks.base import TIP_POSITION, TIP_VELOCITY, BoxConfigTask
 from repbench_tasks.config import TABLE_TOP_Z
 from repbench_tasks.door_env import (
     DOOR_H,
@@ -31,16 +31,12 @@ from repbench_tasks.door_env import (
 )
 
 GYM_ID = f"repbench/{TASK_ID}"
-#: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` (as in ``repbench.rl``).
-EVAL_SEED_BASE = 10_000
-#: Seed of the off-grid configurations of the evaluation episodes.
-EVAL_CONFIG_SEED = 31_339
 #: The episode's configuration (hinge shift, yaw) in z°.
 CONFIG = slice(Z_SHIFT, Z_YAW + 1)
 TASK_STATE_DIM = 10
 
 
-class DoorTask(RobosuiteTask):
+class DoorTask(BoxConfigTask):
     """Pull a cabinet door open by a ring; hinge shift x yaw on a 5x5 grid.
 
     Every argument is a field of :class:`~repbench_tasks.door_env.DoorConfig` (see there); the
@@ -51,6 +47,8 @@ class DoorTask(RobosuiteTask):
     config_class: ClassVar[type] = DoorConfig
     env_class: ClassVar[str] = "repbench_tasks.door_env:DoorEnv"
     version: ClassVar[int] = 0
+    eval_config_seed: ClassVar[int] = 31_339
+    off_grid_distance: ClassVar[float] = OFF_GRID_DISTANCE
 
     def __init__(self, horizon: int = 60, grid_size: int = 5,
                  shift_range: tuple[float, float] = (-0.08, 0.08),
@@ -90,26 +88,9 @@ class DoorTask(RobosuiteTask):
         """The validated configuration, with ``overrides`` applied."""
         return super().config(**overrides)
 
-    def evaluation_resets(self, n: int) -> list[dict[str, Any]]:
-        """``n`` fixed evaluation episodes: every grid configuration once (in order), then
-        configurations off the grid (at least a quarter grid spacing from every grid point),
-        each with its own reset seed."""
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
-            raise ConfigError(f"{TASK_ID}: evaluation episodes n={n!r} must be a positive int")
-        cfg = self.config()
-        grid = cfg.grid_configs()
-        lo, hi = cfg.config_box()
-        rng = np.random.default_rng(EVAL_CONFIG_SEED)
-        resets: list[dict[str, Any]] = []
-        for i in range(n):
-            seed = EVAL_SEED_BASE + i
-            if i < len(grid):
-                resets.append({"seed": seed, "options": {"config_index": i}})
-                continue
-            x = off_grid_point(rng, grid, lo, hi, OFF_GRID_DISTANCE)
-            resets.append({"seed": seed, "options": {"shift": float(x[0]),
-                                                     "yaw": float(x[1])}})
-        return resets
+    def box_options(self, x: np.ndarray) -> dict[str, float]:
+        """Reset options for the box point ``x`` = (hinge shift, yaw)."""
+        return {"shift": float(x[0]), "yaw": float(x[1])}
 
     def task_state(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
         """The state a controller needs, float32 [N, 10]: the rod tip's offset from the

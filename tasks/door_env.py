@@ -29,7 +29,13 @@ from robosuite.models.tasks import ManipulationTask
 from robosuite.utils.mjcf_utils import array_to_string
 
 from repbench.errors import ConfigError
-from repbench_tasks.config import TABLE_TOP_Z, check_timing, check_types
+from repbench_tasks.config import (
+    TABLE_TOP_Z,
+    box_grid,
+    check_box_config,
+    check_timing,
+    pick_box_config,
+)
 from repbench_tasks.env import N_ARM, WristTaskEnv
 from repbench_tasks.rewards import reach_reward
 from repbench_tasks.sim import (
@@ -49,7 +55,6 @@ from repbench_tasks.sim import (
 TASK_ID = "Door-v0"
 START_KINDS = ("above", "engaged")
 REACH_REWARDS = ("distance", "staged")
-CONFIG_SAMPLING = ("grid", "off_grid")
 ROBOT_VIEWS = ("proprio", "tip")
 #: Nominal hinge axis on the table (world x, y; m). The door spans -y from it, facing -x (the
 #: robot).
@@ -134,12 +139,7 @@ class DoorConfig:
 
     def grid_configs(self) -> np.ndarray:
         """The ``grid_size**2`` configurations (shift, yaw), row-major [G, 2]."""
-        lo, hi = self.config_box()
-        n = self.grid_size
-        axes = [np.linspace(lo[i], hi[i], n) if n > 1 else np.array([(lo[i] + hi[i]) / 2])
-                for i in range(2)]
-        gs, gy = np.meshgrid(*axes, indexing="ij")
-        return np.stack([gs.ravel(), gy.ravel()], axis=1)
+        return box_grid(*self.config_box(), self.grid_size)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -149,21 +149,9 @@ class DoorConfig:
         def bad(name: str, msg: str) -> ConfigError:
             return ConfigError(f"{TASK_ID}: {name}={getattr(self, name)!r} {msg}")
 
-        check_types(self, bad)
-        for name in ("horizon", "grid_size", "image_size"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise bad(name, "must be a positive integer")
-        if self.grid_size > 50:
-            raise bad("grid_size", "must be an integer in [1, 50] (5 by default)")
-        if self.config_sampling not in CONFIG_SAMPLING:
-            raise bad("config_sampling", f"must be one of {CONFIG_SAMPLING}")
-        if self.start not in START_KINDS:
-            raise bad("start", f"must be one of {START_KINDS}")
-        if self.robot_view not in ROBOT_VIEWS:
-            raise bad("robot_view", f"must be one of {ROBOT_VIEWS}")
-        if self.reach_reward not in REACH_REWARDS:
-            raise bad("reach_reward", f"must be one of {REACH_REWARDS}")
+        check_box_config(self, bad, ("horizon", "grid_size", "image_size"),
+                         {"start": START_KINDS, "robot_view": ROBOT_VIEWS,
+                          "reach_reward": REACH_REWARDS})
         for name in ("action_scale", "physics_dt", "ft_cutoff_hz", "success_angle",
                      "start_height"):
             v = getattr(self, name)
@@ -504,19 +492,8 @@ class DoorEnv(WristTaskEnv):
                 raise ValueError(f"reset options shift={x[0]}, yaw={x[1]} lie outside "
                                  f"shift_range={cfg.shift_range}, yaw_range={cfg.yaw_range}")
             return float(x[0]), float(x[1])
-        if "config_index" in options:
-            idx = int(options["config_index"])
-            if not 0 <= idx < len(self.grid):
-                raise ValueError(f"reset option config_index={idx} must be in "
-                                 f"[0, {len(self.grid)})")
-            return float(self.grid[idx, 0]), float(self.grid[idx, 1])
-        if cfg.config_sampling == "grid":
-            idx = int(self.np_random.integers(len(self.grid)))
-            return float(self.grid[idx, 0]), float(self.grid[idx, 1])
-        from repbench_tasks.base import off_grid_point
-
-        x = off_grid_point(self.np_random, self.grid, lo, hi, OFF_GRID_DISTANCE)
-        return float(x[0]), float(x[1])
+        return pick_box_config(options, self.grid, lo, hi, cfg.config_sampling, self.np_random,
+                               OFF_GRID_DISTANCE)
 
 
 def approach_action(offset: np.ndarray, direction: np.ndarray, engaged: bool,

@@ -13,7 +13,7 @@ import numpy as np
 
 from repbench.dataset import PROPRIO, TRUE_STATE, as_observation_batch
 from repbench.errors import ConfigError, DataError
-from repbench_tasks.base import TIP_POSITION, TIP_VELOCITY, RobosuiteTask
+from repbench_tasks.base import EVAL_SEED_BASE, TIP_POSITION, TIP_VELOCITY, RobosuiteTask
 from repbench_tasks.config import TABLE_TOP_Z, PegInHoleConfig
 
 __all__ = ["EVAL_HOLE_SEED", "EVAL_SEED_BASE", "GYM_ID", "HOLE_XY", "TIP_POSITION",
@@ -23,8 +23,6 @@ __all__ = ["EVAL_HOLE_SEED", "EVAL_SEED_BASE", "GYM_ID", "HOLE_XY", "TIP_POSITIO
 HOLE_XY = slice(14, 16)
 
 GYM_ID = "repbench/PegInHole-v0"
-#: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` (as in ``repbench.rl``).
-EVAL_SEED_BASE = 10_000
 #: Seed of the off-grid hole positions of the evaluation episodes.
 EVAL_HOLE_SEED = 31_337
 

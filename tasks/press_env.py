@@ -34,7 +34,13 @@ from robosuite.models.tasks import ManipulationTask
 from robosuite.utils.mjcf_utils import array_to_string
 
 from repbench.errors import ConfigError
-from repbench_tasks.config import TABLE_TOP_Z, check_timing, check_types
+from repbench_tasks.config import (
+    TABLE_TOP_Z,
+    box_grid,
+    check_box_config,
+    check_timing,
+    pick_box_config,
+)
 from repbench_tasks.env import N_ARM, WristTaskEnv
 from repbench_tasks.sim import (
     ROD_TIP_IN_SITE,
@@ -51,7 +57,6 @@ from repbench_tasks.sim import (
 
 TASK_ID = "SurfacePress-v0"
 START_KINDS = ("above", "pressed")
-CONFIG_SAMPLING = ("grid", "off_grid")
 ROBOT_VIEWS = ("proprio", "tip")
 #: Planar position of the plate's centre on the table (m).
 PLATE_XY = (0.0, 0.0)
@@ -133,12 +138,7 @@ class SurfacePressConfig:
 
     def grid_configs(self) -> np.ndarray:
         """The ``grid_size**2`` configurations (log10 k, rest offset), row-major [G, 2]."""
-        lo, hi = self.config_box()
-        n = self.grid_size
-        axes = [np.linspace(lo[i], hi[i], n) if n > 1 else np.array([(lo[i] + hi[i]) / 2])
-                for i in range(2)]
-        gk, gh = np.meshgrid(*axes, indexing="ij")
-        return np.stack([gk.ravel(), gh.ravel()], axis=1)
+        return box_grid(*self.config_box(), self.grid_size)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -149,19 +149,8 @@ class SurfacePressConfig:
         def bad(name: str, msg: str) -> ConfigError:
             return ConfigError(f"{TASK_ID}: {name}={getattr(self, name)!r} {msg}")
 
-        check_types(self, bad)
-        for name in ("horizon", "grid_size", "hold_steps", "image_size"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise bad(name, "must be a positive integer")
-        if self.grid_size > 50:
-            raise bad("grid_size", "must be an integer in [1, 50] (5 by default)")
-        if self.config_sampling not in CONFIG_SAMPLING:
-            raise bad("config_sampling", f"must be one of {CONFIG_SAMPLING}")
-        if self.start not in START_KINDS:
-            raise bad("start", f"must be one of {START_KINDS}")
-        if self.robot_view not in ROBOT_VIEWS:
-            raise bad("robot_view", f"must be one of {ROBOT_VIEWS}")
+        check_box_config(self, bad, ("horizon", "grid_size", "hold_steps", "image_size"),
+                         {"start": START_KINDS, "robot_view": ROBOT_VIEWS})
         for name in ("target_force", "force_tolerance", "plate_height", "plate_half",
                      "plate_mass", "damping_ratio", "max_lead", "action_scale", "physics_dt",
                      "ft_cutoff_hz"):
@@ -522,19 +511,8 @@ class PressEnv(WristTaskEnv):
                                  f"stiffness_range={cfg.stiffness_range}, "
                                  f"rest_height_range={cfg.rest_height_range}")
             return float(x[0]), float(x[1])
-        if "config_index" in options:
-            idx = int(options["config_index"])
-            if not 0 <= idx < len(self.grid):
-                raise ValueError(f"reset option config_index={idx} must be in "
-                                 f"[0, {len(self.grid)})")
-            return float(self.grid[idx, 0]), float(self.grid[idx, 1])
-        if cfg.config_sampling == "grid":
-            idx = int(self.np_random.integers(len(self.grid)))
-            return float(self.grid[idx, 0]), float(self.grid[idx, 1])
-        from repbench_tasks.base import off_grid_point
-
-        x = off_grid_point(self.np_random, self.grid, lo, hi, OFF_GRID_DISTANCE)
-        return float(x[0]), float(x[1])
+        return pick_box_config(options, self.grid, lo, hi, cfg.config_sampling, self.np_random,
+                               OFF_GRID_DISTANCE)
 
 
 #: Setpoint lead per newton that the stiff OSC needs (measured at 15 N: 3.2 mm with k = 500 N/m,

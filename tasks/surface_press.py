@@ -13,8 +13,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from repbench.dataset import PROPRIO, TRUE_STATE, as_observation_batch
-from repbench.errors import ConfigError, DataError
-from repbench_tasks.base import TIP_POSITION, TIP_VELOCITY, RobosuiteTask, off_grid_point
+from repbench.errors import DataError
+from repbench_tasks.base import TIP_POSITION, TIP_VELOCITY, BoxConfigTask
 from repbench_tasks.config import TABLE_TOP_Z
 from repbench_tasks.press_env import (
     OFF_GRID_DISTANCE,
@@ -28,16 +28,12 @@ from repbench_tasks.press_env import (
 )
 
 GYM_ID = f"repbench/{TASK_ID}"
-#: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` (as in ``repbench.rl``).
-EVAL_SEED_BASE = 10_000
-#: Seed of the off-grid configurations of the evaluation episodes.
-EVAL_CONFIG_SEED = 31_338
 #: The episode's configuration (log10 stiffness, rest-height offset) in z°.
 CONFIG = slice(Z_LOG_K, Z_REST + 1)
 TASK_STATE_DIM = 8
 
 
-class SurfacePressTask(RobosuiteTask):
+class SurfacePressTask(BoxConfigTask):
     """Press a spring-mounted plate to a target force; stiffness x rest height on a 5x5 grid.
 
     Every argument is a field of :class:`~repbench_tasks.press_env.SurfacePressConfig` (see
@@ -48,6 +44,8 @@ class SurfacePressTask(RobosuiteTask):
     config_class: ClassVar[type] = SurfacePressConfig
     env_class: ClassVar[str] = "repbench_tasks.press_env:PressEnv"
     version: ClassVar[int] = 0
+    eval_config_seed: ClassVar[int] = 31_338
+    off_grid_distance: ClassVar[float] = OFF_GRID_DISTANCE
 
     def __init__(self, horizon: int = 60, grid_size: int = 5,
                  stiffness_range: tuple[float, float] = (500.0, 5000.0),
@@ -81,26 +79,9 @@ class SurfacePressTask(RobosuiteTask):
         """The validated configuration, with ``overrides`` applied."""
         return super().config(**overrides)
 
-    def evaluation_resets(self, n: int) -> list[dict[str, Any]]:
-        """``n`` fixed evaluation episodes: every grid configuration once (in order), then
-        configurations off the grid (uniform in log stiffness and rest height, at least a
-        quarter grid spacing from every grid point), each with its own reset seed."""
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
-            raise ConfigError(f"{TASK_ID}: evaluation episodes n={n!r} must be a positive int")
-        cfg = self.config()
-        grid = cfg.grid_configs()
-        lo, hi = cfg.config_box()
-        rng = np.random.default_rng(EVAL_CONFIG_SEED)
-        resets: list[dict[str, Any]] = []
-        for i in range(n):
-            seed = EVAL_SEED_BASE + i
-            if i < len(grid):
-                resets.append({"seed": seed, "options": {"config_index": i}})
-                continue
-            x = off_grid_point(rng, grid, lo, hi, OFF_GRID_DISTANCE)
-            resets.append({"seed": seed, "options": {"stiffness": float(10 ** x[0]),
-                                                     "rest_offset": float(x[1])}})
-        return resets
+    def box_options(self, x: np.ndarray) -> dict[str, float]:
+        """Reset options for the box point ``x`` = (log10 stiffness, rest offset)."""
+        return {"stiffness": float(10 ** x[0]), "rest_offset": float(x[1])}
 
     def task_state(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
         """The pressing state a controller needs, float32 [N, 8]: the tip's planar offset from
