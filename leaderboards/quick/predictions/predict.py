@@ -39,6 +39,9 @@ def main() -> int:
     ap.add_argument("--source", type=Path, default=Path("leaderboards/quick/records"))
     ap.add_argument("--score", action="store_true",
                     help="score the committed predictions against the store's RL records")
+    ap.add_argument("--prediction", type=Path, default=None,
+                    help="with --score: the prediction table to score (default <task id>.csv "
+                         "beside this script)")
     args = ap.parse_args()
 
     quick = load_suite("quick")
@@ -49,7 +52,7 @@ def main() -> int:
     (task,) = suite.tasks
     out = HERE / f"{task}.csv"
     if args.score:
-        check, table = score_predictions(pd.read_csv(out), target.rl_rows)
+        check, table = score_predictions(pd.read_csv(args.prediction or out), target.rl_rows)
         print(table[["encoder", "family", "metric_value", "predicted_unclipped",
                      "predicted_return", "ci_low", "ci_high", "actual_return", "n_seeds",
                      "inside"]].to_string(index=False))

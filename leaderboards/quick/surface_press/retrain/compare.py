@@ -14,7 +14,9 @@ units of the metric's own bootstrap half-width, the Spearman correlation of each
 encoders between the two trainings, and the pre-registered prediction's ranking recomputed from
 the second training's metrics with the same frozen peg-in-hole calibration (never written over
 ``predictions/SurfacePress-v0.csv``). Writes ``metrics.csv`` and ``encoders.csv`` beside this
-file.
+file; ``--write-prediction PATH`` also writes that recomputed prediction (the secondary test of
+``predictions/README.md``), after checking that the metric it predicts from has the values this
+folder's committed ``metrics.csv`` holds for the second training.
 """
 
 from __future__ import annotations
@@ -55,7 +57,10 @@ def main() -> int:
     ap.add_argument("--a", default=str(first), help="first training's records")
     ap.add_argument("--b", required=True, help="second training: a store or a records folder")
     ap.add_argument("--suite", default=str(BOARD / "suite_20k.toml"))
+    ap.add_argument("--write-prediction", type=Path, default=None,
+                    help="write the prediction recomputed from the second training's metrics")
     args = ap.parse_args()
+    committed_metrics = pd.read_csv(HERE / "metrics.csv")  # before this run rewrites it
 
     suite = load_suite(args.suite)
     plan = build_plan(suite)
@@ -118,7 +123,24 @@ def main() -> int:
     print(both[["encoder", "metric_value_committed", "metric_value_retrained",
                 "predicted_unclipped_committed", "predicted_unclipped_retrained"]]
           .round(3).to_string(index=False))
+    if args.write_prediction is not None:
+        _check_against(again, committed_metrics)
+        args.write_prediction.parent.mkdir(parents=True, exist_ok=True)
+        again.to_csv(args.write_prediction, index=False, float_format="%.6g")
+        print(f"wrote {args.write_prediction}")
     return 0
+
+
+def _check_against(prediction: pd.DataFrame, committed: pd.DataFrame) -> None:
+    """Stop unless every encoder's predicting metric value equals (to the CSV's 6 digits) the
+    second training's value in the committed ``metrics.csv``."""
+    (metric,) = prediction.metric.unique()
+    values = committed[committed.metric == metric].set_index("encoder").value_b
+    merged = prediction.set_index("encoder").metric_value.to_frame().join(values, how="left")
+    if merged.value_b.isna().any() or not np.allclose(merged.metric_value, merged.value_b,
+                                                      rtol=1e-5, atol=0):
+        raise SystemExit(f"the store's {metric} values are not the committed metrics.csv's "
+                         "value_b: this is not the training that file describes")
 
 
 if __name__ == "__main__":
