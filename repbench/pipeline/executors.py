@@ -19,6 +19,7 @@ import ctypes
 import multiprocessing as mp
 import os
 import signal
+import statistics
 import sys
 import threading
 import time
@@ -263,17 +264,22 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
     report.labels = {i: s.label or i for i, s in by_id.items()}
     deps = {i: [f"{k}/{key}" for k, key in s.deps] for i, s in by_id.items()}
     finished: set[str] = set()
+    times = StageTimes()
     for i, s in by_id.items():
-        if store.get(s.kind, s.key) is not None:
+        if (art := store.get(s.kind, s.key)) is not None:
             finished.add(i)
             report.cached.append(i)
+            times.add_earlier(s.kind, art.meta.get("wall_time_s"))
     todo = [i for i in by_id if i not in finished]
-    durations: dict[str, list[float]] = defaultdict(list)
     running: dict[Any, str] = {}
     started: dict[str, float] = {}
     blocked: set[str] = set()
+    # no rate-based "<remaining" from tqdm: stages differ by 1000x (a metric vs an RL run);
+    # the postfix has the estimate by stage kind (_status)
     bar = tqdm(total=len(by_id), initial=len(finished), desc="stages", unit="stage",
-               disable=not progress, dynamic_ncols=True)
+               disable=not progress, dynamic_ncols=True,
+               bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} "
+                          "[{elapsed}{postfix}]")
     if report.cached:
         echo(f"reusing {len(report.cached)} finished stages from {store.root}")
     try:
@@ -297,6 +303,8 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                         report.skipped.append(i)
                     break
                 continue
+            bar.set_postfix_str(_status(running, by_id, todo, times, executor.capacity,
+                                        started), refresh=True)
             for handle, result in executor.wait_any(list(running)):
                 i = running.pop(handle)
                 spec = by_id[i]
@@ -312,13 +320,13 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                          f"{result.get('waited_s', 0.0):.1f} s)")
                 else:
                     secs = time.time() - started[i]
-                    durations[spec.kind].append(secs)
+                    times.add(spec.kind, secs)
                     report.done[i] = secs
                     finished.add(i)
                     echo(f"done   {report.labels[i]} ({secs:.1f} s)")
                 bar.update(1)
-            bar.set_postfix_str(_status(running, by_id, todo, durations, executor.capacity),
-                                refresh=True)
+            bar.set_postfix_str(_status(running, by_id, todo, times, executor.capacity,
+                                        started), refresh=True)
     except BaseException:  # Ctrl-C (KeyboardInterrupt) or a bug: stop the running stages
         bar.close()
         executor.abort()
@@ -328,15 +336,50 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
     return report
 
 
+class StageTimes:
+    """Expected wall seconds of a stage, by kind: the mean of this run's finished stages of
+    that kind, else the median of the wall times the store recorded for them in earlier runs
+    (a resumed run knows an RL stage's length before its first one ends), else the mean over
+    every kind known, else 10 s."""
+
+    def __init__(self) -> None:
+        self.now: dict[str, list[float]] = defaultdict(list)
+        self.earlier: dict[str, list[float]] = defaultdict(list)
+
+    def add(self, kind: str, seconds: float) -> None:
+        self.now[kind].append(float(seconds))
+
+    def add_earlier(self, kind: str, seconds: Any) -> None:
+        if isinstance(seconds, (int, float)) and seconds >= 0:
+            self.earlier[kind].append(float(seconds))
+
+    def expected(self, kind: str) -> float:
+        if self.now.get(kind):
+            return sum(self.now[kind]) / len(self.now[kind])
+        if self.earlier.get(kind):
+            return float(statistics.median(self.earlier[kind]))
+        known = [t for v in (*self.now.values(), *self.earlier.values()) for t in v]
+        return sum(known) / len(known) if known else 10.0
+
+
 def _status(running: dict[Any, str], by_id: dict[str, StageSpec], todo: list[str],
-            durations: dict[str, list[float]], capacity: int) -> str:
+            times: StageTimes, capacity: int, started: dict[str, float]) -> str:
+    """The running stages and the time left: the expected time of every stage not started and
+    what is left of the running ones' expected times, shared over ``capacity`` workers."""
     names = [by_id[i].label or by_id[i].kind for i in running.values()]
-    known = [s for v in durations.values() for s in v]
-    fallback = sum(known) / len(known) if known else 10.0
-    remaining = sum(
-        (sum(durations[by_id[i].kind]) / len(durations[by_id[i].kind]))
-        if durations[by_id[i].kind] else fallback for i in todo
-    )
-    eta = remaining / max(1, capacity)
+    now = time.time()
+    remaining = sum(times.expected(by_id[i].kind) for i in todo) + sum(
+        max(times.expected(by_id[i].kind) - (now - started.get(i, now)), 0.0)
+        for i in running.values())
     shown = ", ".join(names[:2]) + (f" +{len(names) - 2}" if len(names) > 2 else "")
-    return f"running: {shown or '-'} | ~{eta / 60:.1f} min left"
+    return f"running: {shown or '-'} | {_time_left(remaining / max(1, capacity))}"
+
+
+def _time_left(seconds: float) -> str:
+    """``~40 s left``, ``~12 min left`` or ``~2 h 05 min left``."""
+    if seconds < 60:
+        return f"~{seconds:.0f} s left"
+    minutes = round(seconds / 60)
+    if minutes < 60:
+        return f"~{minutes} min left"
+    return f"~{minutes // 60} h {minutes % 60:02d} min left"

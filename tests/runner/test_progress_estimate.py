@@ -1,0 +1,78 @@
+"""The time-left estimate of ``run_stages``' progress line (:mod:`repbench.pipeline.executors`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from repbench.pipeline import executors
+from repbench.pipeline.executors import StageTimes, _status, run_stages
+from repbench.pipeline.stages import DATASET, RL, StageSpec
+from repbench.pipeline.store import Store
+
+
+def test_stage_times_prefer_this_run_then_the_store_then_every_kind() -> None:
+    times = StageTimes()
+    assert times.expected(RL) == 10.0  # nothing known at all
+    for s in (100.0, 500.0, 520.0):
+        times.add_earlier(RL, s)
+    times.add_earlier(RL, None)  # a record without a wall time is ignored
+    assert times.expected(RL) == 500.0  # the store's median
+    assert times.expected(DATASET) == pytest.approx((100 + 500 + 520) / 3)  # every kind's mean
+    times.add(RL, 300.0)
+    times.add(RL, 400.0)
+    assert times.expected(RL) == 350.0  # this run's stages win over earlier runs'
+
+
+def test_status_counts_what_is_left_of_the_running_stages(monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    specs = {f"rl{i}": StageSpec(RL, {"i": i}, label=f"rl{i}") for i in range(4)}
+    times = StageTimes()
+    times.add(RL, 600.0)
+    monkeypatch.setattr(executors.time, "time", lambda: 1000.0)
+    running = {"h0": "rl0", "h1": "rl1"}
+    started = {"rl0": 1000.0 - 200.0, "rl1": 1000.0 - 700.0}  # rl1 overran: 0 s left, not < 0
+    line = _status(running, specs, ["rl2", "rl3"], times, 2, started)
+    # (600 + 600 waiting + 400 + 0 left of the running) / 2 workers = 800 s
+    assert line == "running: rl0, rl1 | ~13 min left"
+    times.add(RL, 600.0 * 20)  # mean 6300 s: (6300 * 2 + 6100 + 5600) / 2 = 12150 s
+    assert _status(running, specs, ["rl2", "rl3"], times, 2, started).endswith(
+        "| ~3 h 22 min left")
+    assert _status({}, specs, [], times, 2, {}) == "running: - | ~0 s left"
+
+
+def test_a_resumed_run_estimates_from_the_stores_wall_times(tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
+    store = Store(tmp_path / "s")
+    done, todo = StageSpec(RL, {"i": 0}, label="rl0"), StageSpec(RL, {"i": 1}, label="rl1")
+    with store.write(RL, done.key, config=done.config) as w:
+        w.write_json({"ok": True})
+        w.extra_meta["wall_time_s"] = 480.0  # as a finished RL stage records it
+    seen: list[float] = []
+
+    def spy(running: object, by_id: object, waiting: object, times: StageTimes,
+            *rest: object) -> str:
+        seen.append(times.expected(RL))
+        return ""
+
+    class OneAtATime:
+        capacity = 1
+
+        def submit(self, spec: StageSpec) -> str:
+            return spec.label
+
+        def wait_any(self, handles: list[str]) -> list[tuple[str, dict[str, object]]]:
+            return [(handles[0], {"status": "done"})]
+
+        def shutdown(self) -> None:
+            pass
+
+        def abort(self) -> None:
+            pass
+
+    monkeypatch.setattr(executors, "_status", spy)
+    report = run_stages([done, todo], store, OneAtATime(), progress=False, echo=lambda _: None)
+    assert report.cached == [f"{RL}/{done.key}"]
+    assert seen[0] == 480.0  # before any stage of this run ended: the store's wall time
