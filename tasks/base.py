@@ -26,7 +26,6 @@ from repbench_tasks.config import off_grid_point
 #: tool-point position (3), tool-point linear velocity (3).
 TIP_POSITION = slice(14, 17)
 TIP_VELOCITY = slice(17, 20)
-ROBOT_VIEWS = ("proprio", "tip")
 #: Evaluation episode ``i`` resets with seed ``EVAL_SEED_BASE + i`` (as in ``repbench.rl``).
 EVAL_SEED_BASE = 10_000
 

@@ -100,8 +100,8 @@ def pick_box_config(options: dict[str, Any], grid: np.ndarray, low: np.ndarray,
 def check_box_config(cfg: Any, bad: Callable[[str, str], ConfigError],
                      integers: tuple[str, ...], choices: dict[str, tuple[str, ...]]) -> None:
     """The checks every config-box task's config starts with: field types, ``integers``
-    positive, ``grid_size`` at most 50, ``config_sampling`` and each field of ``choices`` one of
-    its values."""
+    positive, ``grid_size`` at most 50, ``config_sampling``, then each field of ``choices`` and
+    ``robot_view`` one of their values."""
     check_types(cfg, bad)
     for name in integers:
         v = getattr(cfg, name)
@@ -109,7 +109,8 @@ def check_box_config(cfg: Any, bad: Callable[[str, str], ConfigError],
             raise bad(name, "must be a positive integer")
     if cfg.grid_size > 50:
         raise bad("grid_size", "must be an integer in [1, 50] (5 by default)")
-    for name, allowed in {"config_sampling": CONFIG_SAMPLING, **choices}.items():
+    for name, allowed in {"config_sampling": CONFIG_SAMPLING, **choices,
+                          "robot_view": ROBOT_VIEWS}.items():
         if getattr(cfg, name) not in allowed:
             raise bad(name, f"must be one of {allowed}")
 

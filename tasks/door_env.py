@@ -55,7 +55,6 @@ from repbench_tasks.sim import (
 TASK_ID = "Door-v0"
 START_KINDS = ("above", "engaged")
 REACH_REWARDS = ("distance", "staged")
-ROBOT_VIEWS = ("proprio", "tip")
 #: Nominal hinge axis on the table (world x, y; m). The door spans -y from it, facing -x (the
 #: robot).
 HINGE_XY = (0.06, 0.10)
@@ -150,8 +149,7 @@ class DoorConfig:
             return ConfigError(f"{TASK_ID}: {name}={getattr(self, name)!r} {msg}")
 
         check_box_config(self, bad, ("horizon", "grid_size", "image_size"),
-                         {"start": START_KINDS, "robot_view": ROBOT_VIEWS,
-                          "reach_reward": REACH_REWARDS})
+                         {"start": START_KINDS, "reach_reward": REACH_REWARDS})
         for name in ("action_scale", "physics_dt", "ft_cutoff_hz", "success_angle",
                      "start_height"):
             v = getattr(self, name)

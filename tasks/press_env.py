@@ -57,7 +57,6 @@ from repbench_tasks.sim import (
 
 TASK_ID = "SurfacePress-v0"
 START_KINDS = ("above", "pressed")
-ROBOT_VIEWS = ("proprio", "tip")
 #: Planar position of the plate's centre on the table (m).
 PLATE_XY = (0.0, 0.0)
 #: The pusher rod: capsule radius, length below the grip site to the tip (m).
@@ -150,7 +149,7 @@ class SurfacePressConfig:
             return ConfigError(f"{TASK_ID}: {name}={getattr(self, name)!r} {msg}")
 
         check_box_config(self, bad, ("horizon", "grid_size", "hold_steps", "image_size"),
-                         {"start": START_KINDS, "robot_view": ROBOT_VIEWS})
+                         {"start": START_KINDS})
         for name in ("target_force", "force_tolerance", "plate_height", "plate_half",
                      "plate_mass", "damping_ratio", "max_lead", "action_scale", "physics_dt",
                      "ft_cutoff_hz"):
