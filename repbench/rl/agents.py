@@ -339,6 +339,8 @@ class SB3Agent(Agent):
         (:class:`repbench.rl.normalization.StandardizedFeatures`; backend ``"sb3"`` only: the
         SBX backend's environments standardize them, :meth:`train_model`).
         """
+        from stable_baselines3.common.logger import Logger
+
         if self.backend == "sbx" and self.torch_threads == 1:
             jax_single_thread()
         cls = getattr(algorithm_module(self.backend), self.algorithm)
@@ -352,7 +354,7 @@ class SB3Agent(Agent):
             policy_kwargs["features_extractor_class"] = StandardizedFeatures
             policy_kwargs["features_extractor_kwargs"] = {
                 "mean": [float(x) for x in mean], "std": [float(x) for x in std]}
-        return cls(
+        model = cls(
             "MlpPolicy", env,
             learning_rate=float(self.learning_rate),
             buffer_size=int(self.buffer_size if buffer_size is None else buffer_size),
@@ -368,6 +370,9 @@ class SB3Agent(Agent):
             verbose=0,
             **self._algorithm_kwargs(env),
         )
+        # a logger with no outputs: SB3's default makes an empty /tmp/SB3-<date> folder per run
+        model.set_logger(Logger(folder=None, output_formats=[]))
+        return model
 
     def train(self, task: Task, encoder: Encoder, *, train_steps: int, seed: int,
               eval_episodes: int, curve_points: int = 5, progress: bool = True

@@ -81,6 +81,14 @@ def test_seed_changes_training(toy_task, state_encoder):
     assert a.eval_episode_returns != b.eval_episode_returns
 
 
+def test_training_leaves_no_sb3_log_folder(toy_task, state_encoder, tmp_path, monkeypatch):
+    # SB3's default logger makes an empty <tmp>/SB3-<date> folder for every model that learns
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    SACAgent(**TINY).train(toy_task, state_encoder, train_steps=40, seed=0, eval_episodes=1,
+                           curve_points=1, progress=False)
+    assert not list(tmp_path.glob("SB3-*"))
+
+
 @pytest.mark.parametrize("field, value, match", [
     ("hidden_sizes", [], "hidden_sizes"),
     ("learning_rate", -1.0, "learning_rate"),
