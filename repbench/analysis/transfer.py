@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -116,6 +117,21 @@ def predict_task(source_metric_rows: Sequence[Mapping[str, Any]],
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
 
+def read_prediction(path: str | Path) -> pd.DataFrame:
+    """A prediction table (``<task id>.csv``) with the note written beside it, if any.
+
+    ``<task id>.note`` (plain text, next to the CSV) says what the score should be read
+    with — e.g. that the agents read retrained encoders — without touching the committed
+    table; it lands in ``table.attrs["note"]`` and :func:`score_predictions` appends it to the
+    check's detail."""
+    path = Path(path)
+    table = pd.read_csv(path)
+    note = path.with_suffix(".note")
+    if note.is_file():
+        table.attrs["note"] = " ".join(note.read_text().split())
+    return table
+
+
 def score_predictions(predictions: pd.DataFrame, rl_rows: Sequence[Mapping[str, Any]], *,
                       n_bootstrap: int = 2000, seed: int = 0) -> tuple[Check, pd.DataFrame]:
     """The pre-registered test of ``predictions`` (one task × agent, :data:`COLUMNS`) against
@@ -142,5 +158,7 @@ def score_predictions(predictions: pd.DataFrame, rl_rows: Sequence[Mapping[str, 
     n_in, n = int(scored["inside"].sum()), len(scored)
     check = replace(check, statistic="Spearman ρ of predicted vs actual mean returns (learned)",
                     detail=f"{check.detail}; {n_in}/{n} actual returns inside the stated "
-                           f"{predictions['coverage'].iloc[0]:.0%} intervals")
+                           f"{predictions['coverage'].iloc[0]:.0%} intervals"
+                           + (f"; note: {predictions.attrs['note']}"
+                              if predictions.attrs.get("note") else ""))
     return check, table

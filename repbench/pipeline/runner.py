@@ -311,9 +311,10 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
 
 def load_predictions(folder: str | Path, results: Results) -> list[pd.DataFrame]:
     """The pre-registered predictions (``<task id>.csv``,
-    :data:`repbench.analysis.transfer.COLUMNS`) in ``folder`` of the tasks ``results`` has;
-    one-line errors for a folder without any or a file without the columns."""
-    from repbench.analysis.transfer import COLUMNS
+    :data:`repbench.analysis.transfer.COLUMNS`, each with its ``<task id>.note`` if there is
+    one) in ``folder`` of the tasks ``results`` has; one-line errors for a folder without any or
+    a file without the columns."""
+    from repbench.analysis.transfer import COLUMNS, read_prediction
 
     path = Path(folder)
     files = sorted(path.glob("*.csv")) if path.is_dir() else []
@@ -323,7 +324,7 @@ def load_predictions(folder: str | Path, results: Results) -> list[pd.DataFrame]
     tasks = {r["task"] for r in results.metric_rows}
     out = []
     for f in files:
-        table = pd.read_csv(f)
+        table = read_prediction(f)
         lacking = [c for c in COLUMNS if c not in table.columns]
         if lacking or table.empty:
             raise ConfigError(f"--predictions: {f} is not a prediction table (missing "

@@ -14,6 +14,7 @@ from repbench.analysis.transfer import (
     COLUMNS,
     predict_task,
     privileged_return,
+    read_prediction,
     score_predictions,
 )
 from repbench.errors import ConfigError, DataError
@@ -135,3 +136,19 @@ def test_load_predictions_errors_and_task_filter(tmp_path: Path) -> None:
         pred.to_csv(tmp_path / f"{task}.csv", index=False)
     (only,) = load_predictions(tmp_path, res)  # Other-v0 is not a task of the results
     assert set(only["task"]) == {TARGET}
+
+
+def test_a_note_beside_the_prediction_reaches_the_scored_detail(tmp_path: Path) -> None:
+    """``<task>.note`` qualifies the score on the page without touching the committed CSV."""
+    res = SimpleNamespace(metric_rows=[{"task": TARGET}])
+    target_m = {e: 0.5 * i for i, e in enumerate(ENCODERS)}
+    _predict(target_m).to_csv(tmp_path / f"{TARGET}.csv", index=False)
+    actual = _actual({e: 10.0 * v for e, v in target_m.items()})
+    (plain,) = load_predictions(tmp_path, res)
+    assert "note" not in score_predictions(plain, actual, n_bootstrap=50)[0].detail
+    (tmp_path / f"{TARGET}.note").write_text("agents read\n  retrained encoders\n")
+    (noted,) = load_predictions(tmp_path, res)
+    check, _ = score_predictions(noted, actual, n_bootstrap=50)
+    assert check.detail.endswith("; note: agents read retrained encoders")
+    assert read_prediction(tmp_path / f"{TARGET}.csv").attrs["note"] == \
+        "agents read retrained encoders"

@@ -17,11 +17,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import pandas as pd
-
 from repbench.analysis.results import load_records
 from repbench.analysis.robustness import validated_method
-from repbench.analysis.transfer import predict_task, privileged_return, score_predictions
+from repbench.analysis.transfer import (
+    predict_task,
+    privileged_return,
+    read_prediction,
+    score_predictions,
+)
 from repbench.pipeline.plan import build_plan
 from repbench.pipeline.runner import collect_results, records_of_suite, results_of
 from repbench.pipeline.store import Store
@@ -52,7 +55,7 @@ def main() -> int:
     (task,) = suite.tasks
     out = HERE / f"{task}.csv"
     if args.score:
-        check, table = score_predictions(pd.read_csv(args.prediction or out), target.rl_rows)
+        check, table = score_predictions(read_prediction(args.prediction or out), target.rl_rows)
         print(table[["encoder", "family", "metric_value", "predicted_unclipped",
                      "predicted_return", "ci_low", "ci_high", "actual_return", "n_seeds",
                      "inside"]].to_string(index=False))
