@@ -58,11 +58,13 @@ def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = 110, tight: b
 _GRID_COLS = 4
 
 
-def _returns_by_encoder(res: Any, agent: str) -> dict[str, tuple[float, float, float]]:
-    """encoder → (mean, CI low, CI high) of the final return of ``agent`` over seeds."""
+def _returns_by_encoder(res: Any, agent: str, task: str | None = None
+                        ) -> dict[str, tuple[float, float, float]]:
+    """encoder → (mean, CI low, CI high) of the final return of ``agent`` over seeds (on
+    ``task`` only, when given: two tasks' returns are never pooled)."""
     rets: dict[str, list[float]] = {}
     for r in res.rl_rows:
-        if r["agent"] == agent:
+        if r["agent"] == agent and (task is None or r["task"] == task):
             rets.setdefault(r["encoder"], []).append(r["eval_return"])
     return {e: mean_ci(v) for e, v in rets.items()}
 
@@ -119,13 +121,14 @@ def _place_labels(fig: Any, labels: list[tuple[Any, Any]]) -> None:
 
 def _scatter_panel(ax: Any, res: Any, metric: str, agent: str,
                    returns: Mapping[str, tuple[float, float, float]],
-                   families: Mapping[str, str], titles: dict[str, str]) -> dict[str, Any]:
-    """One metric × agent panel: a point per encoder (family colour and marker, CI bars);
-    each point gets a gid and its hover text in ``titles``; returns encoder → (x, y)."""
+                   families: Mapping[str, str], titles: dict[str, str], task: str
+                   ) -> dict[str, Any]:
+    """One task × metric × agent panel: a point per encoder (family colour and marker, CI
+    bars); each point gets a gid and its hover text in ``titles``; returns encoder → (x, y)."""
     points: dict[str, Any] = {}
     for r in res.metric_rows:
         enc = r["encoder"]
-        if r["metric"] != metric or enc not in returns:
+        if r["metric"] != metric or r["task"] != task or enc not in returns:
             continue
         m, lo, hi = returns[enc]
         x = r["value"]
@@ -139,7 +142,7 @@ def _scatter_panel(ax: Any, res: Any, metric: str, agent: str,
         gid = f"mvr-{len(titles)}"
         ax.plot([x], [m], ls="none", marker=marker, color=color, ms=5.5, mec="white",
                 mew=0.5, gid=gid, zorder=3)
-        titles[gid] = (f"{enc} ({families.get(enc, '?')}): {metric}={x:.4g}, "
+        titles[gid] = (f"{enc} ({families.get(enc, '?')}): {task} {metric}={x:.4g}, "
                        f"{agent} return={m:.4g}" + (f" [{lo:.4g}, {hi:.4g}]"
                                                     if np.isfinite(lo) else ""))
         points[enc] = (x, m)
@@ -160,22 +163,25 @@ def _fit_limits(ax: Any, points: Mapping[str, tuple[float, float]], pad: float =
 
 
 def _panel_title(res: Any, metric: str, agent: str, correlations: pd.DataFrame | None,
-                 n_agents: int) -> str:
-    """``metric ↑/↓ ρ=…`` (the direction-adjusted Spearman ρ), with the agent when several."""
+                 n_agents: int, task: str, n_tasks: int = 1) -> str:
+    """``metric ↑/↓ ρ=…`` (the direction-adjusted Spearman ρ on ``task``), with the task and
+    the agent when there are several."""
     arrow = "↑" if res.provenance.get("directions", {}).get(metric, True) else "↓"
     rho = ""
     if correlations is not None and not correlations.empty:
         hit = correlations[(correlations["agent"] == agent)
-                           & (correlations["metric"] == metric)]
+                           & (correlations["metric"] == metric)
+                           & (correlations["task"] == task if "task" in correlations else True)]
         if len(hit) and np.isfinite(hit["spearman"].iloc[0]):
             rho = f"   ρ = {hit['spearman'].iloc[0]:+.2f}"
-    return (f"{agent} · " if n_agents > 1 else "") + f"{metric} {arrow}{rho}"
+    prefix = (f"{task} · " if n_tasks > 1 else "") + (f"{agent} · " if n_agents > 1 else "")
+    return f"{prefix}{metric} {arrow}{rho}"
 
 
 def metric_vs_return(res: Any, path: Path, correlations: pd.DataFrame | None = None
                      ) -> Path | None:
     """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI), as
-    a grid of panels (4 columns, a block of rows per agent); points coloured by encoder
+    a grid of panels (4 columns, a block of rows per task × agent); points coloured by encoder
     family, text labels on the baselines and the best and worst encoders where they fit;
     panel titles carry the direction-adjusted Spearman ρ from ``correlations``.
 
@@ -184,28 +190,30 @@ def metric_vs_return(res: Any, path: Path, correlations: pd.DataFrame | None = N
     if not res.metric_rows or not res.rl_rows:
         return None
     metrics = sorted({r["metric"] for r in res.metric_rows})
-    agents = sorted({r["agent"] for r in res.rl_rows})
+    blocks = _task_agent_blocks(res)
+    n_tasks = len({task for task, _ in blocks})
+    n_agents = len({agent for _, agent in blocks})
     families = encoder_families(res)
     cols = min(_GRID_COLS, len(metrics))
     per_agent = -(-len(metrics) // cols)
-    fig, axes = plt.subplots(per_agent * len(agents), cols, squeeze=False,
-                             figsize=(3.4 * cols, 2.9 * per_agent * len(agents)))
+    fig, axes = plt.subplots(per_agent * len(blocks), cols, squeeze=False,
+                             figsize=(3.4 * cols, 2.9 * per_agent * len(blocks)))
     titles: dict[str, str] = {}
     labels: list[tuple[Any, Any]] = []
     drawn: set[str] = set()
-    for i, agent in enumerate(agents):
-        returns = _returns_by_encoder(res, agent)
+    for i, (task, agent) in enumerate(blocks):
+        returns = _returns_by_encoder(res, agent, task)
         candidates = _label_candidates(returns, families)
         for j in range(per_agent * cols):
             ax = axes[i * per_agent + j // cols][j % cols]
             if j >= len(metrics):
                 ax.set_axis_off()
                 continue
-            points = _scatter_panel(ax, res, metrics[j], agent, returns, families, titles)
+            points = _scatter_panel(ax, res, metrics[j], agent, returns, families, titles, task)
             drawn |= set(points)
             _fit_limits(ax, points)
-            ax.set_title(_panel_title(res, metrics[j], agent, correlations, len(agents)),
-                         fontsize=9.5)
+            ax.set_title(_panel_title(res, metrics[j], agent, correlations, n_agents, task,
+                                      n_tasks), fontsize=9.5 if n_tasks == 1 else 8.5)
             ax.tick_params(labelsize=7.5)
             ax.grid(alpha=0.25, lw=0.5)
             if j % cols == 0:
@@ -289,25 +297,25 @@ def _draw_line(ax: Any, curve: tuple[Any, Any], color: Any, lw: float, zorder: i
 
 def learning_curves(res: Any, path: Path) -> Path | None:
     """Mean learning curve over seeds, one small panel per encoder (the others in grey), a
-    block of panels per agent stacked into one figure."""
+    block of panels per task × agent stacked into one figure."""
     if not res.rl_rows:
         return None
     families = encoder_families(res)
-    agents = sorted({r["agent"] for r in res.rl_rows})
+    pairs = _task_agent_blocks(res)
+    several = len({task for task, _ in pairs}) > 1
     blocks = []
-    for agent in agents:
+    for task, agent in pairs:
+        rows = [r for r in res.rl_rows if r["agent"] == agent and r["task"] == task]
         curves: dict[str, Any] = {}
-        for enc in sorted({r["encoder"] for r in res.rl_rows if r["agent"] == agent}):
-            runs = [r for r in res.rl_rows if r["agent"] == agent and r["encoder"] == enc
-                    and r.get("curve_steps")]
+        for enc in sorted({r["encoder"] for r in rows}):
+            runs = [r for r in rows if r["encoder"] == enc and r.get("curve_steps")]
             if runs:
                 curves[enc] = _mean_curve(runs)
         if curves:
-            blocks.append((agent, curves))
+            blocks.append(((f"{task}\n" if several else "") + f"{agent} return", curves))
     if not blocks:
         return None
-    fig = small_multiples([(f"{agent} return", curves) for agent, curves in blocks], families,
-                          _draw_line, xlabel="env. steps")
+    fig = small_multiples(blocks, families, _draw_line, xlabel="env. steps")
     return save_figure(fig, path)
 
 
@@ -339,23 +347,36 @@ def privileged_curve(res: Any, path: Path) -> Path | None:
     return save_figure(fig, path)
 
 
-def _smoothness_extras(res: Any) -> dict[str, Mapping[str, Any]]:
-    return {r["encoder"]: r.get("extras") or {} for r in res.metric_rows
-            if r["metric"] == "smoothness"}
+def _smoothness_extras(res: Any) -> dict[str, dict[str, Mapping[str, Any]]]:
+    """task → encoder → the smoothness metric's extras (tasks in the suite's order)."""
+    out: dict[str, dict[str, Mapping[str, Any]]] = {}
+    for r in res.metric_rows:
+        if r["metric"] == "smoothness":
+            out.setdefault(r["task"], {})[r["encoder"]] = r.get("extras") or {}
+    return out
+
+
+def _task_label(task: str, label: str, several: bool) -> str:
+    """A small-multiples block's y label, naming the task when there are several."""
+    return f"{task}\n{label}" if several else label
 
 
 def latent_distance(res: Any, path: Path) -> Path | None:
     """E‖z_n − z_{n+T}‖ against T (from the smoothness metric's extras), one small panel per
-    encoder with the others in grey."""
-    extras = _smoothness_extras(res)
-    curves = {e: (x["latent_distance"]["offsets"],
-                  x["latent_distance"].get("mean_distance_normalized")
-                  or x["latent_distance"]["mean_distance"])
-              for e, x in extras.items() if x.get("latent_distance")}
-    if not curves:
+    encoder with the others in grey, a block of panels per task."""
+    by_task = _smoothness_extras(res)
+    blocks = []
+    for task, extras in by_task.items():
+        curves = {e: (x["latent_distance"]["offsets"],
+                      x["latent_distance"].get("mean_distance_normalized")
+                      or x["latent_distance"]["mean_distance"])
+                  for e, x in extras.items() if x.get("latent_distance")}
+        if curves:
+            blocks.append((_task_label(task, "‖z_n − z_{n+T}‖ / scale", len(by_task) > 1),
+                           curves))
+    if not blocks:
         return None
-    fig = small_multiples([("‖z_n − z_{n+T}‖ / scale", curves)], encoder_families(res),
-                          _draw_line, xlabel="offset T (steps)")
+    fig = small_multiples(blocks, encoder_families(res), _draw_line, xlabel="offset T (steps)")
     return save_figure(fig, path)
 
 
@@ -380,27 +401,32 @@ def _draw_stairs(ax: Any, curve: tuple[Any, Any], color: Any, lw: float, zorder:
 
 def smoothness_hist(res: Any, path: Path) -> Path | None:
     """Histogram of ‖z_n − z_{n+1}‖ / ‖z°_n − z°_{n+1}‖, one small panel per encoder with the
-    others in grey."""
-    extras = _smoothness_extras(res)
-    hists = {e: _density(x["histogram"]) for e, x in extras.items() if x.get("histogram")}
-    if not hists:
+    others in grey, a block of panels per task (one shared log axis)."""
+    by_task = _smoothness_extras(res)
+    blocks = []
+    for task, extras in by_task.items():
+        hists = {e: _density(x["histogram"]) for e, x in extras.items() if x.get("histogram")}
+        if hists:
+            blocks.append((_task_label(task, "pairs per decade", len(by_task) > 1), hists))
+    if not blocks:
         return None
-    fig = small_multiples([("pairs per decade", hists)], encoder_families(res), _draw_stairs,
+    fig = small_multiples(blocks, encoder_families(res), _draw_stairs,
                           xlabel="‖Δz‖ / ‖Δz°‖ (log)",
                           ymax=lambda c: 1.15 * float(np.max(c[0], initial=0)) or 1.0)
-    _log_ratio_axis(fig.axes[0], extras, hists)
+    _log_ratio_axis(fig.axes[0], [x for extras in by_task.values() for x in extras.values()],
+                    [h for _, hists in blocks for h in hists.values()])
     return save_figure(fig, path)
 
 
-def _log_ratio_axis(ax: Any, extras: Mapping[str, Mapping[str, Any]],
-                    hists: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+def _log_ratio_axis(ax: Any, extras: Sequence[Mapping[str, Any]],
+                    hists: Sequence[tuple[np.ndarray, np.ndarray]]) -> None:
     """Log x axis (shared by every panel) from the lowest bin edge to 1.5 × the largest 95th
     percentile (the far tail of one encoder would squash every histogram), ticks at the
     powers of ten inside."""
     ax.set_xscale("log")
-    q95 = [float(x["quantiles"]["0.95"]) for x in extras.values()
+    q95 = [float(x["quantiles"]["0.95"]) for x in extras
            if isinstance(x.get("quantiles"), dict) and "0.95" in x["quantiles"]]
-    lows = [float(c[1][0]) for c in hists.values() if len(c[1])]
+    lows = [float(c[1][0]) for c in hists if len(c[1])]
     if not (q95 and lows):
         return
     lo, hi = min(lows), 1.5 * max(q95)
@@ -641,6 +667,12 @@ def budget_agreement(res: Any, path: Path) -> Path | None:
 def _tasks(res: Any) -> list[str]:
     """The tasks with RL rows, in the suite's order."""
     return rl_tasks(res.rl_rows)
+
+
+def _task_agent_blocks(res: Any) -> list[tuple[str, str]]:
+    """(task, agent) pairs with RL rows: tasks in the suite's order, agents sorted."""
+    have = {(r["task"], r["agent"]) for r in res.rl_rows}
+    return [(t, a) for t in _tasks(res) for a in sorted({a for _, a in have}) if (t, a) in have]
 
 
 def task_agreement(res: Any, path: Path) -> Path | None:

@@ -182,3 +182,25 @@ def test_per_encoder_figures_are_closed_by_default(tmp_path: Path) -> None:
     assert not re.search(r"<details[^>]*\bopen\b", html)
     assert html.count("data:image/png;base64,") > 4  # the suite's figures stay open, outside
     assert (tmp_path / "out" / "figures" / "reconstructions_pca.png").is_file()
+
+
+def test_figures_of_two_tasks_never_pool_their_returns(tmp_path: Path) -> None:
+    """With several tasks every scatter point is one task's metric against that task's own
+    mean return (pooled, the first two-task board put each encoder's mean over both tasks
+    against either task's metric), and the small multiples get a block per task."""
+    res = _results()
+    res.rl_rows = [{**r, "train_steps": 100} for r in res.rl_rows]
+    res.encoder_rows.extend([{**r, "task": "U-v0"} for r in res.encoder_rows])
+    res.metric_rows.extend([{**r, "task": "U-v0", "value": r["value"] + 100}
+                            for r in res.metric_rows])
+    res.rl_rows.extend([{**r, "task": "U-v0", "eval_return": 1000 + r["eval_return"]}
+                        for r in res.rl_rows])
+    html = (write_leaderboards(res, tmp_path) / "index.html").read_text()
+    svg = html[html.index("<svg "):html.index("</svg>")]
+    titles = re.findall(r'<g id="mvr-\d+"[^>]*><title>([^<]*)</title>', svg)
+    assert len(titles) == 2 * len(res.metric_rows) // 2 == 20  # 2 tasks × 5 encoders × 2 metrics
+    for t in titles:
+        task, x, ret = re.search(r": (\w-v0) \w+=(-?[\d.]+), sac return=([\d.]+)", t).groups()
+        assert (abs(float(x)) >= 96) == (task == "U-v0")   # U's metric values are shifted
+        assert (float(ret) >= 1000) == (task == "U-v0"), t   # and so are its returns
+    assert re.search(r"T-v0 · ksg ↑\s+ρ", svg) and re.search(r"U-v0 · ksg ↑\s+ρ", svg)
