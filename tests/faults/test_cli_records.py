@@ -41,8 +41,8 @@ def test_records_of_another_suite_exit_2_with_one_line(cli: Cli) -> None:
                    str(cli.cwd / "out"))
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.splitlines() == [
-        f"repbench: error: the records in records folder {quick} belong to suite 'quick' (373 "
-        "of their 373 stages), not to suite 'smoke' that was asked for; pass --suite quick, or "
+        f"repbench: error: the records in records folder {quick} belong to suite 'quick' (746 "
+        "of their 746 stages), not to suite 'smoke' that was asked for; pass --suite quick, or "
         "the records of suite smoke"]
     assert not (cli.cwd / "out").exists()
     smoke = ROOT / "leaderboards" / "smoke" / "records"

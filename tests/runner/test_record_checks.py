@@ -142,7 +142,7 @@ def test_records_of_another_suite_are_refused(finished: tuple[Path, Path, Path],
                        r"'toycheck', not to suite 'toyother' that was asked for; pass --suite "
                        r"toycheck, or the records of suite toyother$"):
         rebuild_leaderboards(other, records=lb / "records", out=tmp_path / "out")
-    with pytest.raises(ConfigError, match=r"belong to suite 'quick' \(373 of their 373 "
+    with pytest.raises(ConfigError, match=r"belong to suite 'quick' \(746 of their 746 "
                        r"stages\), not to suite 'smoke' that was asked for"):
         rebuild_leaderboards("smoke", records=ROOT / "leaderboards" / "quick" / "records",
                              out=tmp_path / "out")
