@@ -46,7 +46,9 @@ class DoorTask(BoxConfigTask):
     task_id: ClassVar[str] = TASK_ID
     config_class: ClassVar[type] = DoorConfig
     env_class: ClassVar[str] = "repbench_tasks.door_env:DoorEnv"
-    version: ClassVar[int] = 0
+    #: 1: the staged reach reward and a 10 mm ring (version 0: distance reward, 5 mm), the
+    #: variant whose privileged SAC reached 100 % on six of six seeds (quick/door/levers/)
+    version: ClassVar[int] = 1
     eval_config_seed: ClassVar[int] = 31_339
     off_grid_distance: ClassVar[float] = OFF_GRID_DISTANCE
 
@@ -60,7 +62,7 @@ class DoorTask(BoxConfigTask):
                  start_xyz: tuple[float, float] = (-0.02, -0.07), start_offset: float = 0.01,
                  start_height: float = 0.07, action_scale: float = 0.02,
                  physics_dt: float = 0.005, ft_cutoff_hz: float = 10.0,
-                 robot_view: str = "tip", reach_reward: str = "distance") -> None:
+                 robot_view: str = "tip", reach_reward: str = "staged") -> None:
         self.horizon = horizon
         self.grid_size = grid_size
         self.shift_range = tuple(shift_range)

@@ -4,7 +4,7 @@ The Panda holds a rigid rod (welded into the hand below the wrist force/torque s
 peg-in-hole's peg and SurfacePress's pusher). A cabinet stands on the table with a door on its
 front face, hinged about a vertical axis; the door can only be *pulled* open (its joint stops at
 closed, and the cabinet blocks its back). The only handle is a ring on the door's top, in front
-of the panel near its free edge: the rod must go down into the ring (5 mm clearance each side)
+of the panel near its free edge: the rod must go down into the ring (10 mm clearance each side)
 and then pull the ring along the door's arc. What varies per episode is the hinge's pose: its
 position along the cabinet's front (``hinge_shift``) and the cabinet's yaw about the hinge, so
 the ring lies somewhere in a ~10 cm x 9 cm patch and the direction to pull varies with it.
@@ -61,7 +61,7 @@ HINGE_XY = (0.06, 0.10)
 #: Door panel: thickness, width, height (m).
 DOOR_T, DOOR_W, DOOR_H = 0.02, 0.20, 0.12
 #: The ring: inner half-width, wall thickness, height (m), its walls flush with the door's top.
-RING_HALF, RING_WALL, RING_DEPTH = 0.017, 0.006, 0.03
+RING_HALF, RING_WALL, RING_DEPTH = 0.022, 0.006, 0.03   # 10 mm clearance around the rod
 #: The ring's centre in the door frame (x towards the robot is negative; y along the door).
 RING_XY = (-(DOOR_T + RING_HALF + RING_WALL), -(DOOR_W - 0.03))
 #: Engagement point: the ring's centre, this far below the door's top (m).
@@ -126,10 +126,11 @@ class DoorConfig:
     """Cut-off of the 2nd-order Butterworth low-pass on the wrist force/torque."""
     robot_view: str = "tip"
     """What the RL agent observes of the robot beside μ_z: ``"tip"`` or ``"proprio"``."""
-    reach_reward: str = "distance"
-    """Reward before the rod is in the ring: ``"distance"`` (to the engagement point) or
-    ``"staged"`` (the peg-in-hole's reach and alignment stages about the ring's mouth, which pay
-    more above the ring than on the door's top beside it); see :func:`door_reward`."""
+    reach_reward: str = "staged"
+    """Reward before the rod is in the ring: ``"staged"`` (the peg-in-hole's reach and alignment
+    stages about the ring's mouth, which pay more above the ring than on the door's top beside
+    it; the default since version 1) or ``"distance"`` (to the engagement point); see
+    :func:`door_reward`."""
 
     def config_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Corners of the configuration box in (hinge shift, yaw)."""
