@@ -108,9 +108,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
             raise ConfigError(f"--task {unknown[0]} is not a task of suite {base.name} "
                               f"({', '.join(base.tasks)}); pass one of those")
         reference_records = [r for r in reference_records if r["task"]["name"] in tasks]
-    one = base.model_copy(update={
-        "encoders": [encoder], "tasks": list(tasks) if tasks else base.tasks,
-        "encoder_params": {encoder: base.encoder_params.get(encoder, {})}})
+    one = (base.only_tasks(tasks) if tasks else base).model_copy(update={
+        "encoders": [encoder], "encoder_params": {encoder: base.encoder_params.get(encoder, {})}})
     plan = build_plan(one)
     stages = [s for s in plan.stages() if not (metrics_only and s.kind == RL)]
     st = Store(store)

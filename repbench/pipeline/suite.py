@@ -25,6 +25,7 @@ not converted; RL seeds are distinct and non-negative; step budgets are at most
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
@@ -186,6 +187,19 @@ class Suite(_Strict):
     def rl_for(self, task: str) -> RLConfig:
         """``[rl]`` with ``task_rl.<task>``'s fields overriding it."""
         return _overridden(self.rl, self.task_rl.get(task))
+
+    def only_tasks(self, tasks: Sequence[str]) -> Suite:
+        """This suite on ``tasks`` (a subset of its own, in the order given), with the per-task
+        tables of the other tasks left out, so that the copy is a valid suite of its own."""
+        keep = list(tasks)
+
+        def mine(table: Mapping[str, Any]) -> dict[str, Any]:
+            return {t: v for t, v in table.items() if t in keep}
+
+        return self.model_copy(update={
+            "tasks": keep, "task_params": mine(self.task_params),
+            "heldout_task_params": mine(self.heldout_task_params),
+            "task_dataset": mine(self.task_dataset), "task_rl": mine(self.task_rl)})
 
     @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod

@@ -12,6 +12,7 @@ import pytest
 
 from repbench.errors import ConfigError
 from repbench.pipeline.plan import build_plan
+from repbench.pipeline.runner import plan_identities
 from repbench.pipeline.suite import load_suite
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -122,3 +123,19 @@ def test_gym_ids_registered_on_import_repbench() -> None:
     assert obs == "['ft', 'image', 'last_action', 'proprio'] True"
     readme = (ROOT / "README.md").read_text()
     assert 'gymnasium.make("repbench/PegInHole-v0"' in readme
+
+
+def test_a_suite_on_fewer_of_its_tasks_is_a_valid_suite() -> None:
+    """``evaluate --task PegInHole-v0`` on two-task quick: the copy drops the other task's
+    per-task tables (a bare ``tasks`` update fails validation) and plans exactly quick's
+    peg-in-hole stages."""
+    quick = load_suite("quick")
+    assert quick.tasks == ["PegInHole-v0", "SurfacePress-v0"]
+    with pytest.raises(ConfigError, match=r"'SurfacePress-v0' is not in tasks"):
+        build_plan(quick.model_copy(update={"tasks": ["PegInHole-v0"]}))
+    peg = quick.only_tasks(["PegInHole-v0"])
+    assert peg.tasks == ["PegInHole-v0"] and "SurfacePress-v0" not in peg.task_rl
+    assert peg.rl_for("PegInHole-v0") == quick.rl_for("PegInHole-v0")
+    mine = plan_identities(peg)
+    assert mine and mine < plan_identities(quick)
+    assert plan_identities(quick.only_tasks(["SurfacePress-v0"])) == plan_identities(quick) - mine
