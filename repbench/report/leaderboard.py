@@ -245,6 +245,10 @@ def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = Non
         if stale.suffix in (".png", ".svg") and stale.resolve() not in kept:
             stale.unlink()
     figures = make_figures(res, met, out_dir / "figures")
+    written = {p.resolve() for p in figures.values()}
+    for source in kept - written:  # a one-task name, now copied under its "<enc>_<task>" name
+        if source.parent == (out_dir / "figures").resolve():
+            source.unlink(missing_ok=True)
     (out_dir / "index.html").write_text(render_html(res, enc, met, figures, claims),
                                         encoding="utf-8")
     return out_dir

@@ -204,3 +204,24 @@ def test_figures_of_two_tasks_never_pool_their_returns(tmp_path: Path) -> None:
         assert (abs(float(x)) >= 96) == (task == "U-v0")   # U's metric values are shifted
         assert (float(ret) >= 1000) == (task == "U-v0"), t   # and so are its returns
     assert re.search(r"T-v0 · ksg ↑\s+ρ", svg) and re.search(r"U-v0 · ksg ↑\s+ρ", svg)
+
+
+def test_a_rebuild_leaves_no_figure_the_page_does_not_show(tmp_path: Path) -> None:
+    """A board rebuilt from records copies each encoder's training curves from its earlier
+    figures; when the board gains a task the copy is renamed ``<stem>_<enc>_<task>.png``, and the
+    one-task original (which the page no longer shows) goes. A source outside the board stays."""
+    out = tmp_path / "board"
+    (out / "figures").mkdir(parents=True)
+    old = out / "figures" / "loss_curves_vae.png"
+    elsewhere = tmp_path / "store" / "loss_curves.png"
+    elsewhere.parent.mkdir()
+    png = (Path(__file__).parents[2] / "leaderboards" / "quick" / "surface_press" / "figures"
+           / "loss_curves_vae.png").read_bytes()  # any real figure
+    old.write_bytes(png)
+    elsewhere.write_bytes(png)
+    res = _results()
+    res.figures_from_store = {"loss_curves vae T-v0": old, "loss_curves pca T-v0": elsewhere}
+    write_leaderboards(res, out)
+    names = sorted(p.name for p in (out / "figures").glob("loss_curves_*.png"))
+    assert names == ["loss_curves_pca_T-v0.png", "loss_curves_vae_T-v0.png"]
+    assert elsewhere.is_file()
