@@ -25,7 +25,7 @@ not converted; RL seeds are distinct and non-negative; step budgets are at most
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
@@ -152,6 +152,10 @@ class MetricsConfig(_Strict):
     seed: int = Field(default=0, description="metric seed")
 
 
+#: The suite tables keyed by task name (``[task_params.<task>]`` ...): each names only listed tasks.
+PER_TASK_FIELDS = ("task_params", "heldout_task_params", "task_dataset", "task_rl")
+
+
 class Suite(_Strict):
     """A validated suite file."""
 
@@ -192,14 +196,9 @@ class Suite(_Strict):
         """This suite on ``tasks`` (a subset of its own, in the order given), with the per-task
         tables of the other tasks left out, so that the copy is a valid suite of its own."""
         keep = list(tasks)
-
-        def mine(table: Mapping[str, Any]) -> dict[str, Any]:
-            return {t: v for t, v in table.items() if t in keep}
-
-        return self.model_copy(update={
-            "tasks": keep, "task_params": mine(self.task_params),
-            "heldout_task_params": mine(self.heldout_task_params),
-            "task_dataset": mine(self.task_dataset), "task_rl": mine(self.task_rl)})
+        return self.model_copy(update={"tasks": keep, **{
+            name: {t: v for t, v in getattr(self, name).items() if t in keep}
+            for name in PER_TASK_FIELDS}})
 
     @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod
@@ -223,8 +222,7 @@ class Suite(_Strict):
                 elif name not in reg:
                     raise ConfigError(f"suite {self.source or self.name}, field "
                                       f"{field_name!r}: {reg._unknown_message(name)}")
-        for field_name, kind in (("task_params", "tasks"), ("heldout_task_params", "tasks"),
-                                 ("task_dataset", "tasks"), ("task_rl", "tasks"),
+        for field_name, kind in (*((name, "tasks") for name in PER_TASK_FIELDS),
                                  ("encoder_params", "encoders"),
                                  ("metric_params", "metrics"), ("agent_params", "agents")):
             listed = set(getattr(self, kind))

@@ -312,7 +312,7 @@ def learning_curves(res: Any, path: Path) -> Path | None:
             if runs:
                 curves[enc] = _mean_curve(runs)
         if curves:
-            blocks.append(((f"{task}\n" if several else "") + f"{agent} return", curves))
+            blocks.append((_task_label(task, f"{agent} return", several), curves))
     if not blocks:
         return None
     fig = small_multiples(blocks, families, _draw_line, xlabel="env. steps")
