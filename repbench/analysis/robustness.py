@@ -27,15 +27,16 @@ before the data it judges, as :mod:`repbench.analysis.claims` does for the paper
   within-learned Spearman ρ under the first setting; under the second, **holds** if it is the
   best there too or its interval's high end reaches the second setting's best ρ (the two are
   not told apart), **does not hold** otherwise.
-* **Across tasks** (suites with several tasks): the first task's encoder ranking against each
-  other task's (Kendall τ, :data:`TASK_THRESHOLD`: do the tasks rank the encoders alike at
-  all?) and the first task's best metric on each other task (the rule above). The
+* **Across tasks** (suites with several tasks): the encoder rankings of every pair of tasks
+  (Kendall τ, :data:`TASK_THRESHOLD`: do the tasks rank the encoders alike at all?) and the
+  first task's best metric on each other task (the rule above). The
   pre-registered predictions of a new task from the first task's calibration are scored in
   :mod:`repbench.analysis.transfer`.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
@@ -295,23 +296,24 @@ def best_metric_agreement(first: pd.DataFrame, second: pd.DataFrame, *, check: s
 
 def task_checks(rl_rows: Sequence[Mapping[str, Any]], ranking: pd.DataFrame | None
                 ) -> list[Check]:
-    """The across-tasks rows: per agent, the first task (in ``rl_rows``' order) against each
-    other task — the encoder ranking (Kendall τ) and the first task's best metric."""
+    """The across-tasks rows, per agent: the encoder ranking (Kendall τ) of every pair of tasks,
+    and the first task's (in ``rl_rows``' order) best metric on each other task."""
     out: list[Check] = []
     tasks = rl_tasks(rl_rows)
     if not tasks:
         return out
     first = tasks[0]
     for agent in dict.fromkeys(r["agent"] for r in rl_rows):
+        returns = {t: returns_by_encoder(rl_rows, t, agent) for t in tasks}
+        for a, b in itertools.combinations(tasks, 2):
+            if returns[a] and returns[b]:
+                out.append(ranking_agreement(
+                    returns[a], returns[b], check=f"{agent.upper()} ranking {a} vs {b}",
+                    kind="kendall", threshold=TASK_THRESHOLD))
+        if ranking is None or not returns[first]:
+            continue
         for other in tasks[1:]:
-            a = returns_by_encoder(rl_rows, first, agent)
-            b = returns_by_encoder(rl_rows, other, agent)
-            if not a or not b:
-                continue
-            out.append(ranking_agreement(
-                a, b, check=f"{agent.upper()} ranking {first} vs {other}", kind="kendall",
-                threshold=TASK_THRESHOLD))
-            if ranking is not None:
+            if returns[other]:
                 out.append(best_metric_agreement(
                     _board(ranking, first, agent), _board(ranking, other, agent),
                     check=f"{first}'s best metric on {other} ({agent.upper()})", first_label=first,

@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -676,15 +677,14 @@ def _task_agent_blocks(res: Any) -> list[tuple[str, str]]:
 
 
 def task_agreement(res: Any, path: Path) -> Path | None:
-    """Each encoder's mean return on the first task (x) against another task (y), seeds'
-    95 % t-intervals as bars, one panel per other task × agent (no diagonal: two tasks' returns
-    are not on one scale); the title gives the Kendall τ check of ``robustness.csv``."""
+    """Each encoder's mean return on one task (x) against another (y), seeds' 95 % t-intervals
+    as bars, one panel per pair of tasks × agent (no diagonal: two tasks' returns are not on
+    one scale); the title gives the Kendall τ check of ``robustness.csv``."""
     rob = getattr(res, "robustness", None) or {}
     tasks = _tasks(res)
     panels = []
     for agent in dict.fromkeys(r["agent"] for r in res.rl_rows):
-        for other in tasks[1:]:
-            first = tasks[0]
+        for first, other in itertools.combinations(tasks, 2):
             steps = {t: min(int(r["train_steps"]) for r in res.rl_rows if r["task"] == t)
                      for t in (first, other)}
             note = _check_note(rob.get("checks"),

@@ -261,8 +261,8 @@ def _robustness_section(checks: pd.DataFrame | None) -> list[str]:
             "than ±150. Agreement rows (SAC vs DDPG, 10k vs a longer budget), where run: "
             "<b>holds</b> if the bootstrap interval (encoders and seeds resampled) lies above "
             "the threshold, <b>does not hold</b> if below. Across tasks, where a suite has "
-            "several: the first task's encoder ranking against each other task's (Kendall τ, "
-            "holds if its interval lies above 0), the first task's best metric on the other, and "
+            "several: the encoder rankings of every pair of tasks (Kendall τ, holds if its "
+            "interval lies above 0), the first task's best metric on each other task, and "
             "each "
             "pre-registered cross-task prediction (Spearman ρ of predicted vs actual over the "
             "learned encoders: holds if its interval lies above 0).</p>",
@@ -298,9 +298,9 @@ def _cross_task_section(encoders_df: pd.DataFrame) -> list[str]:
                              f"]</span> · {x.get(f'{a}_success', float('nan')):.0%}</td>")
         rows.append(f"<tr><td class='txt'>{html.escape(enc)}</td>{''.join(cells)}</tr>")
     head = "".join(f"<th>{html.escape(t)} {html.escape(a)}</th>" for t in tasks for a in agents)
-    return ["<h2 id='across-tasks'>Across tasks</h2><p class='note'>The first task against "
-            "each other one: whether they rank the encoders alike (Kendall τ), whether the "
-            "first task's best metric is best on the other, and, where a task has a "
+    return ["<h2 id='across-tasks'>Across tasks</h2><p class='note'>Whether each pair of "
+            "tasks ranks the encoders alike (Kendall τ), whether the first task's best metric "
+            "is best on each other task, and, where a task has a "
             "prediction committed before its RL ran, how the first task's calibration "
             "predicted it — rows of the table above, figures below. The modality ablations "
             "side by side (mean return over seeds [95% interval] · success rate): on a task "

@@ -160,7 +160,7 @@ def test_check_results_adds_agent_and_budget_rows() -> None:
     assert {"task", "agent", "predicted", "half_width", "covered"} <= set(pred.columns)
 
 
-def test_task_checks_compare_the_first_task_with_each_other() -> None:
+def test_task_checks_rank_every_pair_and_carry_the_first_tasks_best_metric() -> None:
     rng = np.random.default_rng(3)
     n = 10
     m = np.linspace(0, 1, n)
@@ -174,10 +174,12 @@ def test_task_checks_compare_the_first_task_with_each_other() -> None:
                         + [_board([("x", 0.1, -0.3, 0.5), ("y", 0.8, 0.6, 0.9)]).assign(
                             task="C", agent="sac")], ignore_index=True)
     by = {c.check: c for c in task_checks(rl, ranking)}
-    assert set(by) == {"SAC ranking A vs B", "SAC ranking A vs C", "A's best metric on B (SAC)",
-                       "A's best metric on C (SAC)"}
+    assert set(by) == {"SAC ranking A vs B", "SAC ranking A vs C", "SAC ranking B vs C",
+                       "A's best metric on B (SAC)", "A's best metric on C (SAC)"}
     assert by["SAC ranking A vs B"].verdict == "holds" and by["SAC ranking A vs B"].value > 0.9
     assert by["SAC ranking A vs C"].verdict == "does not hold"
+    assert by["SAC ranking B vs C"].verdict == "does not hold"
+    assert by["SAC ranking B vs C"].value < 0
     assert by["A's best metric on B (SAC)"].verdict == "holds"
     assert by["A's best metric on C (SAC)"].verdict == "does not hold"
     assert task_checks([r for r in rl if r["task"] == "A"], ranking) == []  # one task: none
