@@ -300,6 +300,7 @@ def metric_leaderboard(metric_rows: Sequence[Mapping[str, Any]],
     values: dict[tuple[str, str], dict[str, float]] = {}
     reps: dict[tuple[str, str], dict[str, list[float]]] = {}
     cost: dict[tuple[str, str], list[float]] = {}
+    cost_cpu: dict[tuple[str, str], list[float]] = {}
     for r in metric_rows:
         key = (r["task"], r["metric"])
         values.setdefault(key, {})[r["encoder"]] = float(r["value"])
@@ -308,6 +309,8 @@ def metric_leaderboard(metric_rows: Sequence[Mapping[str, Any]],
             reps.setdefault(key, {})[r["encoder"]] = [float(v) for v in rep if v is not None]
         if r.get("time_s") is not None:
             cost.setdefault(key, []).append(float(r["time_s"]))
+        if r.get("stage_cpu_s") is not None:
+            cost_cpu.setdefault(key, []).append(float(r["stage_cpu_s"]))
     rows: list[dict[str, Any]] = []
     predictions: dict[tuple[str, str, str], dict[str, float]] = {}
     for (task, agent), ret in sorted(returns.items()):
@@ -333,6 +336,8 @@ def metric_leaderboard(metric_rows: Sequence[Mapping[str, Any]],
             row.update(loo)
             times = cost.get((task, metric), [])
             row["cost_s"] = float(np.mean(times)) if times else float("nan")
+            cpu = cost_cpu.get((task, metric), [])
+            row["cost_cpu_s"] = float(np.mean(cpu)) if cpu else float("nan")
             rows.append(row)
     for task in sorted({r["task"] for r in rows}):
         idx = [i for i, r in enumerate(rows) if r["task"] == task]

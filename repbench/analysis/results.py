@@ -215,6 +215,7 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
             res.encoder_rows.append({"task": task, "encoder": enc,
                                      "latent_dim": values.get("latent_dim"),
                                      "fit_time_s": values.get("fit_time_s"),
+                                     "fit_cpu_s": _stage_cpu_s(r),
                                      "family": values.get("family"),
                                      "best_epoch": values.get("best_epoch"),
                                      "epochs_run": values.get("epochs_run"),
@@ -227,7 +228,8 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
         elif kind == "metric":
             name = r["metric"]["name"]
             directions[name] = bool(values.get("higher_is_better", True))
-            res.metric_rows.append({"task": task, "encoder": enc, "metric": name, **values})
+            res.metric_rows.append({"task": task, "encoder": enc, "metric": name, **values,
+                                    "stage_cpu_s": _stage_cpu_s(r)})
         elif kind == "rl":
             res.rl_rows.append({"task": task, "encoder": enc, "agent": r["agent"]["name"],
                                 "seed": r.get("seed"), **values})
@@ -243,6 +245,15 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     if res.stale:
         res.provenance["stale"] = {f"{t} {e}": why for (t, e), why in sorted(res.stale.items())}
     return res
+
+
+def _stage_cpu_s(record: Mapping[str, Any]) -> float | None:
+    """CPU seconds of the stage that made ``record`` (its ``timings``; ``None`` if absent).
+
+    Unlike wall time this does not grow while the run waits: paused, or sharing its cores
+    with other work."""
+    seconds = (record.get("timings") or {}).get("cpu_time_s")
+    return float(seconds) if isinstance(seconds, (int, float)) else None
 
 
 def _order_by(suite: Any) -> Any:

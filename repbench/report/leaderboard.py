@@ -2,15 +2,15 @@
 CSV/HTML. Which records a suite's leaderboard shows is decided by the caller (the runner selects
 them by identity, :mod:`repbench.analysis.results`); nothing here reads a plan or the store.
 
-* ``encoders.csv`` — one row per task × encoder: how it was trained (fit time, epochs run, the
-  epoch kept by early stopping and its held-out loss), every metric with its CI, and per agent
-  the RL return over seeds (mean and interquartile mean, each with a stratified-bootstrap 95 %
-  interval from rliable; seeds are the unit) and success rate.
+* ``encoders.csv`` — one row per task × encoder: how it was trained (fit time in wall and CPU
+  seconds, epochs run, the epoch kept by early stopping and its held-out loss), every metric
+  with its CI, and per agent the RL return over seeds (mean and interquartile mean, each with a
+  stratified-bootstrap 95 % interval from rliable; seeds are the unit) and success rate.
 * ``metrics.csv`` — one row per task × agent × metric, ranked: the metric leaderboard
   (:func:`metric_ranking`: Spearman within the learned encoders and over all encoders with
-  intervals and Holm/BH-adjusted p-values, leave-one-encoder-out error, cost in seconds), then
-  Pearson, Spearman and Kendall over all encoders with bootstrap CIs and p-values — "which
-  metric predicts RL performance".
+  intervals and Holm/BH-adjusted p-values, leave-one-encoder-out error, cost in wall and CPU
+  seconds), then Pearson, Spearman and Kendall over all encoders with bootstrap CIs and
+  p-values — "which metric predicts RL performance".
 * ``claims.csv`` — the paper's claims checked against these records, each with its statistic,
   interval and verdict (:mod:`repbench.analysis.claims`).
 * ``robustness.csv`` — does the answer hold: the out-of-sample coverage of the calibrated
@@ -39,7 +39,10 @@ __all__ = ["Results", "build_results", "encoder_table", "metric_table", "write_l
 
 
 #: How each encoder was trained (from its encoder record; empty for untrained baselines).
-ENCODER_TRAINING_COLUMNS = ("fit_time_s", "epochs_run", "best_epoch", "heldout_loss")
+#: ``fit_time_s`` is the fit's wall time, ``fit_cpu_s`` the CPU seconds of the whole encoder
+#: stage (fit, output checks, figure), which a paused or crowded run does not inflate.
+ENCODER_TRAINING_COLUMNS = ("fit_time_s", "fit_cpu_s", "epochs_run", "best_epoch",
+                            "heldout_loss")
 
 
 def encoder_table(res: Results) -> pd.DataFrame:

@@ -335,7 +335,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
                  "spearman_learned_ci_high", "spearman_learned_p_holm", "spearman_learned_p_bh",
                  "n_learned", "spearman_all", "spearman_all_ci_low", "spearman_all_ci_high",
                  "spearman_all_p_holm", "spearman_all_p_bh", "n_all", "loo_rmse",
-                 "loo_rmse_ratio", "cost_s"]
+                 "loo_rmse_ratio", "cost_s", "cost_cpu_s"]
     if len({*metrics_df.get("task", pd.Series(dtype=object))}) > 1:
         rank_cols.insert(0, "task")
     ranking = metrics_df[[c for c in rank_cols if c in metrics_df.columns]]
@@ -353,8 +353,10 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "bootstrap replicates, paired across encoders). p_holm / p_bh: Holm and "
         "Benjamini–Hochberg adjusted p-values over all metric × agent tests. loo_rmse: error "
         "of predicting an encoder's mean return from the metric by a line fit on the other "
-        "encoders; ratio &lt; 1 beats predicting the others' mean. cost_s: seconds to compute "
-        "the metric for one encoder.</p>",
+        "encoders; ratio &lt; 1 beats predicting the others' mean. cost_s: wall seconds to compute "
+        "the metric for one encoder; cost_cpu_s: CPU seconds of its whole stage (loading the "
+        "latents, the estimate and its bootstrap), which a paused or crowded run does not "
+        "inflate.</p>",
         _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
         else "<p>No correlations yet.</p>",
         *_claims_section(claims),
@@ -370,7 +372,9 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "<p class='note'>One row per task × encoder: every metric with its confidence interval, "
         "and per agent the evaluation return over seeds — mean and interquartile mean (IQM), "
         "each with a stratified-bootstrap 95% interval (rliable; seeds are the unit of "
-        "inference) — and success rate on the fixed evaluation episodes.</p>",
+        "inference) — and success rate on the fixed evaluation episodes. fit_time_s is the "
+        "encoder's training in wall seconds, fit_cpu_s the CPU seconds of its stage: compare "
+        "costs on the second, which a paused or crowded run does not inflate.</p>",
         *_encoder_notes(res),
         _table(encoders_df, "encoders", row_class=_encoder_row_class(res)),
         *_privileged_section(prov),

@@ -84,6 +84,7 @@ def _records() -> tuple[list[dict], list[dict], dict[str, str]]:
     metric_rows, rl_rows = [], []
     for e, (v, r) in enc_value_return.items():
         metric_rows.append({"task": "T", "encoder": e, "metric": "m", "value": v, "time_s": 2.0,
+                            "stage_cpu_s": 1.0 + v,  # vae_a..e: 6..10, oracle 11, blind 1
                             "extras": {"bootstrap_replicates": [v - 0.1, v, v + 0.1]}})
         metric_rows.append({"task": "T", "encoder": e, "metric": "cost_only", "value": -v,
                             "time_s": 0.5})
@@ -104,6 +105,7 @@ def test_within_family_scope_excludes_the_baselines_that_anchor_the_correlation(
     assert m["spearman_all"] == pytest.approx(2 / 7)
     assert m["spearman_learned"] == pytest.approx(-1.0)  # reversed among the VAEs
     assert m["cost_s"] == pytest.approx(2.0)
+    assert m["cost_cpu_s"] == pytest.approx((6 + 7 + 8 + 9 + 10 + 11 + 1) / 7)
     for scope in ("all", "learned"):
         assert m[f"spearman_{scope}_p_holm"] >= m[f"spearman_{scope}_p"]
         assert m[f"spearman_{scope}_p_bh"] >= m[f"spearman_{scope}_p"]
@@ -111,6 +113,28 @@ def test_within_family_scope_excludes_the_baselines_that_anchor_the_correlation(
     # lower-is-better "cost_only" is the sign-flipped m: same correlations
     c = next(r for r in rows if r["metric"] == "cost_only")
     assert c["spearman_learned"] == pytest.approx(m["spearman_learned"])
+    assert np.isnan(c["cost_cpu_s"])  # its rows carry no CPU time: unknown, not 0
+
+
+def test_costs_in_cpu_seconds_come_from_the_records_timings() -> None:
+    """``fit_cpu_s`` (encoders.csv) and the metrics' ``stage_cpu_s`` are the CPU seconds each
+    stage's record holds, unlike ``fit_time_s``, the fit's wall time."""
+    from pathlib import Path
+
+    from repbench.analysis.results import build_results, load_records
+
+    records = load_records(Path(__file__).parents[2] / "leaderboards" / "smoke" / "records")
+    cpu = {(r["kind"], r["task"]["name"], (r.get("encoder") or {}).get("name"),
+            (r.get("metric") or {}).get("name")): r["timings"]["cpu_time_s"] for r in records}
+    res = build_results(records)
+    assert res.encoder_rows and res.metric_rows
+    for row in res.encoder_rows:
+        assert row["fit_cpu_s"] == cpu[("encoder", row["task"], row["encoder"], None)] > 0
+    for row in res.metric_rows:
+        key = ("metric", row["task"], row["encoder"], row["metric"])
+        assert row["stage_cpu_s"] == cpu[key] > 0
+    assert build_results([{**r, "timings": {}} for r in records]).encoder_rows[0][
+        "fit_cpu_s"] is None
 
 
 def test_permutation_p_is_exact_for_few_encoders() -> None:
