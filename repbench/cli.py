@@ -56,6 +56,9 @@ def list_plugins(
         for name in reg.names():
             try:
                 desc = reg.describe(name)
+                sensing = getattr(reg.get(name), "sensing", None) if k == "tasks" else None
+                if callable(sensing) and sensing():
+                    desc += f" Sensors: {sensing()}."
             except RepbenchError as exc:
                 desc = f"[cannot load: {exc}]"
             typer.echo(f"  {name:<22} {desc}")

@@ -33,6 +33,12 @@ class Task(abc.ABC):
     #: Versioned id, as in gymnasium (``PegInHole-v0``).
     task_id: ClassVar[str]
 
+    @classmethod
+    def sensing(cls) -> str:
+        """What the observations carry by default, in a few words (``repbench list tasks``);
+        empty when the task does not say."""
+        return ""
+
     @abc.abstractmethod
     def make_env(self, seed: int | None = None, **overrides: Any) -> Any:
         """Build a fresh gymnasium environment (dict observations, continuous actions)."""

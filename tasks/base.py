@@ -40,6 +40,15 @@ class RobosuiteTask(Task):
     #: ``"repbench_tasks.module:EnvClass"``: the gymnasium environment, built from a config.
     env_class: ClassVar[str]
 
+    @classmethod
+    def sensing(cls) -> str:
+        """The default sensors, from ``config_class``'s defaults: camera size and the F/T
+        sensor's low-pass cutoff."""
+        defaults = {f.name: f.default for f in dataclasses.fields(cls.config_class)}
+        n = defaults["image_size"]
+        return (f"{n}x{n} wrist RGB, 6-axis wrist F/T ({defaults['ft_cutoff_hz']:g} Hz "
+                "low-pass), proprioception")
+
     def config(self, **overrides: Any) -> Any:
         """The validated configuration, with ``overrides`` applied."""
         params = {**self.get_params(), **overrides}

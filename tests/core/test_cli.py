@@ -24,6 +24,18 @@ def test_list_encoders_with_descriptions() -> None:
     assert "cannot load" not in out.stdout
 
 
+def test_list_tasks_says_what_each_task_senses() -> None:
+    """The three contact-rich tasks list their wrist camera and F/T sensor (from their configs'
+    defaults); the toy task, which does not say, lists its description alone."""
+    out = _repbench("list", "tasks")
+    assert out.returncode == 0, out.stderr
+    lines = {line.split()[0]: line for line in out.stdout.splitlines()[1:]}
+    for task in ("PegInHole-v0", "SurfacePress-v0", "Door-v0"):
+        assert lines[task].endswith(
+            "Sensors: 64x64 wrist RGB, 6-axis wrist F/T (10 Hz low-pass), proprioception."), task
+    assert "Sensors" not in lines["ToyReach-v0"] and "cannot load" not in out.stdout
+
+
 def test_help_explains_every_command() -> None:
     out = _repbench("--help")
     assert out.returncode == 0
