@@ -144,8 +144,9 @@ def evaluate(
     metrics_only: Annotated[bool, typer.Option(
         "--metrics-only", help="Skip RL: compute the metrics and predict the return from the "
         "reference calibration (minutes instead of hours).")] = False,
-    reference: Annotated[Optional[Path], typer.Option(  # noqa: UP045
-        "--reference", help="Folder of reference records (default: "
+    reference: Annotated[Optional[list[Path]], typer.Option(  # noqa: UP045
+        "--reference", help="Folder of reference records, repeat for several (default: the "
+        "folders leaderboards/<suite>/reference.toml lists, else "
         "leaderboards/<suite>/records).")] = None,
     store: StoreOpt = None,
     out: Annotated[Optional[str], typer.Option(  # noqa: UP045
@@ -161,7 +162,8 @@ def evaluate(
     from repbench.pipeline.evaluate import evaluate_encoder
 
     result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store, out=out,
-                              reference=reference, workers=workers, tasks=task or None)
+                              reference=reference or None, workers=workers,
+                              tasks=task or None)
     typer.echo(f"leaderboard written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)

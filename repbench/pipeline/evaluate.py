@@ -2,8 +2,9 @@
 
 Computes only that encoder's stages (the suite's datasets and privileged full-state agent are
 reused from the store or regenerated deterministically from their seeds), merges its records
-with the reference records shipped in ``leaderboards/<suite>/records/``, and writes a leaderboard
-with the new encoder highlighted. ``metrics_only`` skips its RL runs and predicts its return
+with the reference records shipped in ``leaderboards/<suite>/`` (the folders its
+``reference.toml`` lists, one per task, else ``records/``), and writes a leaderboard with the new
+encoder highlighted. ``metrics_only`` skips its RL runs and predicts its return
 from the reference calibration (:mod:`repbench.analysis.calibration`) instead: minutes, not hours.
 
 The new records are comparable with the reference only if they were computed on the same data:
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from repbench import _toml as toml
 from repbench.analysis.calibration import predict_from_rows
 from repbench.analysis.results import (
     Results,
@@ -51,22 +53,55 @@ class EvaluateResult:
     seconds: float = 0.0
 
 
-def reference_dir(suite_name: str, reference: str | Path | None = None) -> Path:
-    """Where the suite's reference records are: ``reference`` if given, else
-    ``./leaderboards/<suite>/records``, else the one in repbench's source checkout."""
+#: The manifest in ``leaderboards/<suite>/`` that lists a suite's reference records folders
+#: (``records = ["records", "surface_press/records"]``, relative to the manifest).
+REFERENCE_MANIFEST = "reference.toml"
+
+
+def reference_dirs(suite_name: str,
+                   reference: str | Path | Sequence[str | Path] | None = None) -> list[Path]:
+    """Where the suite's reference records are: the ``reference`` folder(s) if given, else the
+    folders that ``leaderboards/<suite>/reference.toml`` lists, else
+    ``leaderboards/<suite>/records``; looked for in ``./`` first, then in repbench's source
+    checkout."""
+    if reference is not None and not isinstance(reference, (str, Path)) and not reference:
+        reference = None
     if reference is not None:
-        path = Path(reference)
-        if not path.is_dir():
-            raise ConfigError(f"reference records folder {path} does not exist")
-        return path
-    candidates = [Path("leaderboards") / suite_name / "records",
-                  Path(__file__).resolve().parents[2] / "leaderboards" / suite_name / "records"]
-    for path in candidates:
-        if path.is_dir() and any(path.rglob("*.json")):
-            return path
+        paths = [Path(reference)] if isinstance(reference, (str, Path)) else \
+            [Path(r) for r in reference]
+        for path in paths:
+            if not path.is_dir():
+                raise ConfigError(f"reference records folder {path} does not exist")
+        return paths
+    roots = [Path("leaderboards") / suite_name,
+             Path(__file__).resolve().parents[2] / "leaderboards" / suite_name]
+    for root in roots:
+        if (root / REFERENCE_MANIFEST).is_file():
+            return _manifest_dirs(root / REFERENCE_MANIFEST)
+        if (root / "records").is_dir() and any((root / "records").rglob("*.json")):
+            return [root / "records"]
     raise ConfigError(f"no reference records for suite {suite_name!r} (looked in "
-                      f"{', '.join(str(c) for c in candidates)}); pass --reference DIR, or run "
-                      f"`repbench run --suite {suite_name}` to make them")
+                      f"{', '.join(str(r / 'records') for r in roots)}); pass --reference DIR, "
+                      f"or run `repbench run --suite {suite_name}` to make them")
+
+
+def _manifest_dirs(manifest: Path) -> list[Path]:
+    """The records folders a reference manifest lists, each checked to exist."""
+    try:
+        folders = toml.loads(manifest.read_text())["records"]
+    except (toml.TOMLDecodeError, KeyError) as exc:
+        raise ConfigError(f"{manifest} must hold records = [\"folder\", ...] (the reference "
+                          f"records folders, relative to it): {exc}") from exc
+    if not isinstance(folders, list) or not folders \
+            or not all(isinstance(f, str) for f in folders):
+        raise ConfigError(f"{manifest}: records must be a non-empty list of folder names, "
+                          f"got {folders!r}")
+    paths = [manifest.parent / f for f in folders]
+    for path in paths:
+        if not path.is_dir():
+            raise ConfigError(f"{manifest} lists reference records folder {path}, which does "
+                              "not exist; fix the list or restore the folder")
+    return paths
 
 
 def _folder_name(encoder: str) -> str:
@@ -80,7 +115,8 @@ def _folder_name(encoder: str) -> str:
 
 def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only: bool = False,
                      store: str | Path | None = None, out: str | Path | None = None,
-                     reference: str | Path | None = None, executor: str = "local",
+                     reference: str | Path | Sequence[str | Path] | None = None,
+                     executor: str = "local",
                      workers: int | None = None, progress: bool = True,
                      tasks: Sequence[str] | None = None) -> EvaluateResult:
     """Compute ``encoder``'s stages of ``suite`` and write the merged leaderboard; with
@@ -95,13 +131,15 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     base = load_suite(suite)
     out_dir = check_out_dir(out if out is not None
                             else Path("leaderboards") / f"{base.name}-{_folder_name(encoder)}")
-    ref_dir = reference_dir(base.name, reference)
+    ref_dirs = reference_dirs(base.name, reference)
     dropped: list[str] = []  # reference or new records left out (edited, truncated ...)
-    reference_records = load_records(ref_dir, problems=dropped)
-    if not reference_records:
-        raise ConfigError(f"no readable records in {ref_dir}")
-    reference_records = records_of_suite(reference_records, base, ref_dir,
-                                         what="reference records folder")
+    reference_records = []
+    for ref_dir in ref_dirs:
+        found = load_records(ref_dir, problems=dropped)
+        if not found:
+            raise ConfigError(f"no readable records in {ref_dir}")
+        reference_records += records_of_suite(found, base, ref_dir,
+                                              what="reference records folder")
     if tasks:
         unknown = [t for t in tasks if t not in base.tasks]
         if unknown:
@@ -115,7 +153,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     st = Store(store)
     ex = make_executor(executor, str(st.root), workers)
     print(f"evaluate {encoder} on suite {base.name}: {len(stages)} stages"
-          f"{' (metrics only, no RL)' if metrics_only else ''}; reference records {ref_dir}; "
+          f"{' (metrics only, no RL)' if metrics_only else ''}; reference records "
+          f"{', '.join(map(str, ref_dirs))}; "
           f"store {st.root}", flush=True)
     report = run_stages(stages, st, ex, progress=progress)
     print(f"stages: {report.summary()}", flush=True)
@@ -135,7 +174,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     res.highlight = [encoder]
     res.warnings = [*dropped, *warnings]
     res.provenance["evaluated"] = {"encoder": encoder, "metrics_only": metrics_only,
-                                   "reference_records": str(ref_dir),
+                                   "reference_records": ", ".join(map(str, ref_dirs)),
                                    "n_reference_records": len(reference_records)}
     if metrics_only:
         from repbench.analysis.robustness import validated_method

@@ -30,7 +30,6 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
 
-import tomllib
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -43,6 +42,7 @@ from pydantic import (
     model_validator,
 )
 
+from repbench import _toml as toml
 from repbench.errors import ConfigError
 
 BUILTIN_SUITES = ("smoke", "quick", "paper")
@@ -238,8 +238,8 @@ def load_suite(name_or_path: str | Path) -> Suite:
     """Load a built-in suite by name (``smoke``) or a suite file by path."""
     text, source = _read_suite_text(name_or_path)
     try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+        data = toml.loads(text)
+    except toml.TOMLDecodeError as exc:
         raise ConfigError(f"suite file {source}: not valid TOML ({exc})") from None
     data.setdefault("name", Path(source).stem)
     try:

@@ -11,9 +11,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from repbench.analysis.results import load_records
 from repbench.errors import ConfigError
+from repbench.pipeline.evaluate import reference_dirs
 from repbench.pipeline.records import CHECKSUM, SCHEMA_VERSION, inspect_record, record_checksum
-from repbench.pipeline.runner import rebuild_leaderboards, run_suite
+from repbench.pipeline.runner import rebuild_leaderboards, records_of_suite, run_suite
+from repbench.pipeline.suite import load_suite
 
 from .tiny_toy_suite import tiny_toy_suite
 
@@ -121,15 +124,50 @@ def test_damaged_records_in_a_store_are_left_out_by_name(
 
 
 @pytest.mark.parametrize("suite", ["smoke", "quick"])
-def test_shipped_reference_records_pass_their_checks(suite: str,
-                                                     caplog: pytest.LogCaptureFixture) -> None:
-    folder = ROOT / "leaderboards" / suite / "records"
-    paths = sorted(folder.rglob("*.json"))
-    assert paths
-    for path in paths:
-        record, problem = inspect_record(path)
-        assert problem is None and record is not None, problem
-        assert record[CHECKSUM] == record_checksum(record)
+def test_shipped_reference_records_pass_their_checks(suite: str, tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every record in the folders ``repbench evaluate`` reads (from the source checkout: the
+    working directory has no leaderboards/) passes its checks, and together they hold every
+    task of the suite."""
+    monkeypatch.chdir(tmp_path)
+    folders = reference_dirs(suite)
+    assert folders[0] == ROOT / "leaderboards" / suite / "records"
+    tasks: set[str] = set()
+    for folder in folders:
+        paths = sorted(folder.rglob("*.json"))
+        assert paths, folder
+        for path in paths:
+            record, problem = inspect_record(path)
+            assert problem is None and record is not None, problem
+            assert record[CHECKSUM] == record_checksum(record)
+        ours = records_of_suite(load_records(folder), load_suite(suite), folder)
+        tasks |= {r["task"]["name"] for r in ours}
+    assert sorted(tasks) == sorted(load_suite(suite).tasks)
+
+
+def test_a_reference_manifest_lists_folders_and_a_bad_one_says_what_to_fix(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    suite = tmp_path / "leaderboards" / "s"
+    for folder in ("records", "b/records"):
+        (suite / folder).mkdir(parents=True)
+    (suite / "records" / "r.json").write_text("{}")
+    assert reference_dirs("s") == [Path("leaderboards/s/records")]  # no manifest: records/
+    manifest = suite / "reference.toml"
+    manifest.write_text('records = ["records", "b/records"]\n')
+    assert reference_dirs("s") == [Path("leaderboards/s/records"), Path("leaderboards/s/b/records")]
+    assert reference_dirs("s", [suite / "b" / "records"]) == [suite / "b" / "records"]
+    manifest.write_text('records = ["records", "c/records"]\n')
+    with pytest.raises(ConfigError, match=r"^leaderboards/s/reference.toml lists reference "
+                       r"records folder leaderboards/s/c/records, which does not exist; fix "
+                       r"the list or restore the folder$"):
+        reference_dirs("s")
+    for bad in ('records = "records"\n', "folders = []\n", "records = [\n"):
+        manifest.write_text(bad)
+        with pytest.raises(ConfigError, match=r"^leaderboards/s/reference.toml"):
+            reference_dirs("s")
+    with pytest.raises(ConfigError, match=r"^reference records folder nowhere does not exist$"):
+        reference_dirs("s", ["nowhere"])
 
 
 def test_records_of_another_suite_are_refused(finished: tuple[Path, Path, Path],
