@@ -269,7 +269,7 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
         if (art := store.get(s.kind, s.key)) is not None:
             finished.add(i)
             report.cached.append(i)
-            times.add_earlier(s.kind, art.meta.get("wall_time_s"))
+            times.add_earlier(s.kind, art.meta.get("wall_time_s"), s.cost_group)
     todo = [i for i in by_id if i not in finished]
     running: dict[Any, str] = {}
     started: dict[str, float] = {}
@@ -320,7 +320,7 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
                          f"{result.get('waited_s', 0.0):.1f} s)")
                 else:
                     secs = time.time() - started[i]
-                    times.add(spec.kind, secs)
+                    times.add(spec.kind, secs, spec.cost_group)
                     report.done[i] = secs
                     finished.add(i)
                     echo(f"done   {report.labels[i]} ({secs:.1f} s)")
@@ -337,29 +337,42 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
 
 
 class StageTimes:
-    """Expected wall seconds of a stage, by kind: the mean of this run's finished stages of
-    that kind, else the median of the wall times the store recorded for them in earlier runs
-    (a resumed run knows an RL stage's length before its first one ends), else the mean over
-    every kind known, else 10 s."""
+    """Expected wall seconds of a stage, from its cost group (:attr:`StageSpec.cost_group`)
+    if stages of that group have finished, else from its kind: in each case the mean of this
+    run's finished stages, else the median of the wall times the store recorded for them in
+    earlier runs (a resumed run knows an RL stage's length before its first one ends); else the
+    mean over every kind known, else 10 s."""
 
     def __init__(self) -> None:
         self.now: dict[str, list[float]] = defaultdict(list)
         self.earlier: dict[str, list[float]] = defaultdict(list)
 
-    def add(self, kind: str, seconds: float) -> None:
-        self.now[kind].append(float(seconds))
+    def add(self, kind: str, seconds: float, group: str = "") -> None:
+        for name in _names(kind, group):
+            self.now[name].append(float(seconds))
 
-    def add_earlier(self, kind: str, seconds: Any) -> None:
+    def add_earlier(self, kind: str, seconds: Any, group: str = "") -> None:
         if isinstance(seconds, (int, float)) and seconds >= 0:
-            self.earlier[kind].append(float(seconds))
+            for name in _names(kind, group):
+                self.earlier[name].append(float(seconds))
 
-    def expected(self, kind: str) -> float:
-        if self.now.get(kind):
-            return sum(self.now[kind]) / len(self.now[kind])
-        if self.earlier.get(kind):
-            return float(statistics.median(self.earlier[kind]))
-        known = [t for v in (*self.now.values(), *self.earlier.values()) for t in v]
+    def expected(self, kind: str, group: str = "") -> float:
+        for name in _names(kind, group)[::-1]:  # the group first, then the kind
+            if self.now.get(name):
+                return sum(self.now[name]) / len(self.now[name])
+            if self.earlier.get(name):
+                return float(statistics.median(self.earlier[name]))
+        known = [t for name, v in (*self.now.items(), *self.earlier.items())
+                 if not name.startswith(_GROUP) for t in v]
         return sum(known) / len(known) if known else 10.0
+
+
+_GROUP = "group: "
+
+
+def _names(kind: str, group: str) -> list[str]:
+    """Where a stage's time is counted: its kind, and its cost group when it has one."""
+    return [kind, _GROUP + group] if group else [kind]
 
 
 def _status(running: dict[Any, str], by_id: dict[str, StageSpec], todo: list[str],
@@ -368,9 +381,11 @@ def _status(running: dict[Any, str], by_id: dict[str, StageSpec], todo: list[str
     what is left of the running ones' expected times, shared over ``capacity`` workers."""
     names = [by_id[i].label or by_id[i].kind for i in running.values()]
     now = time.time()
-    remaining = sum(times.expected(by_id[i].kind) for i in todo) + sum(
-        max(times.expected(by_id[i].kind) - (now - started.get(i, now)), 0.0)
-        for i in running.values())
+    def expected(i: str) -> float:
+        return times.expected(by_id[i].kind, by_id[i].cost_group)
+
+    remaining = sum(expected(i) for i in todo) + sum(
+        max(expected(i) - (now - started.get(i, now)), 0.0) for i in running.values())
     shown = ", ".join(names[:2]) + (f" +{len(names) - 2}" if len(names) > 2 else "")
     return f"running: {shown or '-'} | {_time_left(remaining / max(1, capacity))}"
 

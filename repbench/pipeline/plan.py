@@ -255,9 +255,11 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                 "metric": m, "params": mparams, "seed": suite.metric_settings.seed,
                 "rows": getattr(fn, "rows", "all"), "version": plugin_version(fn)}),
                 inputs={"latents": _ref(lat)}, label=f"{task_name} {m} × {enc_name}",
+                cost_group=f"{task_name} {m}",
                 record=_context("metric", task_part, data=metric_data, encoder=enc_part,
                                 metric=plugin_part(m, fn, mparams),
                                 seed=suite.metric_settings.seed, data_stages=metric_stages))
+        renders = "image" if IMAGE in getattr(cls, "required_modalities", ()) else "no image"
         for a in suite.agents:
             agent_cls = agents.get(a)
             aparams: dict[str, Any] = dict(suite.agent_params.get(a, {}))
@@ -274,6 +276,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                     "curve_points": rl.curve_points, "seed": seed,
                     "agent_version": plugin_version(agent_cls)}),
                     inputs={"encoder": _ref(enc)}, label=f"{task_name} {a} × {enc_name} s{seed}",
+                    cost_group=f"{task_name} {a} {rl.train_steps} steps, {renders}",
                     record=_context("rl", task_part, data={"random": random_data},
                                     encoder=enc_part, agent=agent_part, seed=seed,
                                     budget=budget, data_stages={"random": random_ds.key}))

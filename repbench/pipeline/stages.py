@@ -42,6 +42,11 @@ class StageSpec:
     #: What the stage computes, for its result record (:mod:`repbench.pipeline.records`): task,
     #: data, plugins with versions and parameters, seed. Not part of the key (the config is).
     record: Mapping[str, Any] | None = field(default=None, compare=False)
+    #: Stages of one group take about as long as each other (the same metric on one task; RL of
+    #: one agent and budget on one task, with or without rendering): the progress line's time
+    #: left estimates a stage from its group first (:class:`~repbench.pipeline.executors.
+    #: StageTimes`). Not part of the key.
+    cost_group: str = field(default="", compare=False)
 
     @property
     def key(self) -> str:

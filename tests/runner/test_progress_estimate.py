@@ -25,6 +25,35 @@ def test_stage_times_prefer_this_run_then_the_store_then_every_kind() -> None:
     assert times.expected(RL) == 350.0  # this run's stages win over earlier runs'
 
 
+def test_a_stage_is_estimated_from_its_cost_group_before_its_kind() -> None:
+    """RL that renders the wrist image takes longer than RL that does not: a waiting stage is
+    estimated from the finished stages of its own group, even an earlier run's, over this
+    run's stages of its kind."""
+    times = StageTimes()
+    times.add(RL, 240.0, "T sac 20000 steps, no image")
+    times.add(RL, 380.0, "T sac 20000 steps, image")
+    times.add(RL, 400.0, "T sac 20000 steps, image")
+    assert times.expected(RL, "T sac 20000 steps, image") == 390.0
+    assert times.expected(RL, "T sac 20000 steps, no image") == 240.0
+    assert times.expected(RL, "U sac 10000 steps, image") == pytest.approx(1020 / 3)  # kind
+    assert times.expected(RL) == pytest.approx(1020 / 3)
+    times.add_earlier(RL, 700.0, "U sac 10000 steps, image")
+    assert times.expected(RL, "U sac 10000 steps, image") == 700.0
+    assert times.expected(DATASET) == pytest.approx((240 + 380 + 400 + 700) / 4)  # not doubled
+
+
+def test_the_plan_groups_rl_by_rendering_and_metrics_by_name() -> None:
+    from repbench.pipeline.plan import build_plan
+    from repbench.pipeline.suite import load_suite
+
+    (tp,) = build_plan(load_suite("smoke")).tasks
+    groups = {enc: spec.cost_group for (enc, agent, _), spec in tp.rl.items() if agent == "sac"}
+    assert groups["pca"] == "PegInHole-v0 sac 300 steps, image"
+    assert groups["oracle"] == "PegInHole-v0 sac 300 steps, no image"
+    assert tp.metrics[("pca", "ksg")].cost_group == tp.metrics[("oracle", "ksg")].cost_group \
+        != tp.metrics[("oracle", "mine")].cost_group
+
+
 def test_status_counts_what_is_left_of_the_running_stages(monkeypatch: pytest.MonkeyPatch
                                                           ) -> None:
     specs = {f"rl{i}": StageSpec(RL, {"i": i}, label=f"rl{i}") for i in range(4)}
