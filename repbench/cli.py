@@ -90,13 +90,16 @@ def run(
         "--no-rl", help="Every stage but the encoders' RL: metrics first (e.g. to commit a "
         "return prediction before any RL record exists); rerun without it to add the RL.")
     ] = False,
+    task: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
+        "--task", help="Only this task of the suite (repeat for several; default: all). "
+        "Leaderboards go to leaderboards/<suite>-<task> unless --out says otherwise.")] = None,
 ) -> None:
     """Run a suite: datasets → encoders → latents → metrics → RL → correlations →
     leaderboards. Finished stages are reused from the store, so an interrupted run resumes."""
     from repbench.pipeline.runner import run_suite
 
     result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
-                       ray_address=ray_address, no_rl=no_rl)
+                       ray_address=ray_address, no_rl=no_rl, tasks=task or None)
     typer.echo(f"leaderboards written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)

@@ -34,7 +34,7 @@ from repbench.pipeline.executors import RunReport, make_executor, run_stages
 from repbench.pipeline.plan import build_plan
 from repbench.pipeline.preflight import check_out_dir
 from repbench.pipeline.records import identity_key
-from repbench.pipeline.runner import records_of_suite
+from repbench.pipeline.runner import records_of_suite, suite_on_tasks
 from repbench.pipeline.stages import RL
 from repbench.pipeline.store import Store
 from repbench.pipeline.suite import load_suite
@@ -129,6 +129,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     elif encoder not in encoders:
         raise ConfigError(encoders._unknown_message(encoder))
     base = load_suite(suite)
+    on_tasks = suite_on_tasks(base, tasks)
     out_dir = check_out_dir(out if out is not None
                             else Path("leaderboards") / f"{base.name}-{_folder_name(encoder)}")
     ref_dirs = reference_dirs(base.name, reference)
@@ -140,13 +141,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
             raise ConfigError(f"no readable records in {ref_dir}")
         reference_records += records_of_suite(found, base, ref_dir,
                                               what="reference records folder")
-    if tasks:
-        unknown = [t for t in tasks if t not in base.tasks]
-        if unknown:
-            raise ConfigError(f"--task {unknown[0]} is not a task of suite {base.name} "
-                              f"({', '.join(base.tasks)}); pass one of those")
-        reference_records = [r for r in reference_records if r["task"]["name"] in tasks]
-    one = (base.only_tasks(tasks) if tasks else base).model_copy(update={
+    reference_records = [r for r in reference_records if r["task"]["name"] in on_tasks.tasks]
+    one = on_tasks.model_copy(update={
         "encoders": [encoder], "encoder_params": {encoder: base.encoder_params.get(encoder, {})}})
     plan = build_plan(one)
     stages = [s for s in plan.stages() if not (metrics_only and s.kind == RL)]

@@ -42,28 +42,44 @@ class RunResult:
     seconds: float
 
 
-def default_out_dir(suite_name: str) -> Path:
-    return Path("leaderboards") / suite_name
+def default_out_dir(suite_name: str, tasks: Sequence[str] | None = None) -> Path:
+    """``leaderboards/<suite>``; on some of its tasks ``leaderboards/<suite>-<task>...``, so
+    that a one-task run never overwrites the whole suite's board."""
+    return Path("leaderboards") / "-".join([suite_name, *(tasks or [])])
+
+
+def suite_on_tasks(suite: Suite, tasks: Sequence[str] | None) -> Suite:
+    """``suite`` on ``tasks`` only (all of them when ``tasks`` is empty or None); a task that
+    is not the suite's raises ConfigError naming the ones it has."""
+    if not tasks:
+        return suite
+    unknown = [t for t in tasks if t not in suite.tasks]
+    if unknown:
+        raise ConfigError(f"--task {unknown[0]} is not a task of suite {suite.name} "
+                          f"({', '.join(suite.tasks)}); pass one of those")
+    return suite.only_tasks(list(dict.fromkeys(tasks)))
 
 
 def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | Path | None = None,
               executor: str = "local", workers: int | None = None,
               ray_address: str | None = None, progress: bool = True,
-              no_rl: bool = False) -> RunResult:
+              no_rl: bool = False, tasks: Sequence[str] | None = None) -> RunResult:
     """Run every missing stage of ``suite`` and write its leaderboards.
 
     With ``no_rl`` every stage but the encoders' RL runs (datasets, the privileged agent that
     collects the on-policy data, encoders, latents, metrics): the metrics of a task can then be
     looked at, or a return predicted from them and committed, before any RL record exists; a
-    later run without ``no_rl`` on the same store adds the RL.
+    later run without ``no_rl`` on the same store adds the RL. With ``tasks`` only those of the
+    suite's tasks run (the same stages as in the whole suite, so a later whole run reuses
+    them), and the default output folder is ``leaderboards/<suite>-<task>``.
 
     Raises :class:`repbench.errors.RepbenchError` for a bad suite/plugin/parameter before any
     work starts. Stages that fail are reported; the leaderboards show what finished.
     """
     start = time.time()
     check_workers(workers)
-    s = load_suite(suite)
-    out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
+    s = suite_on_tasks(load_suite(suite), tasks)
+    out_dir = check_out_dir(out if out is not None else default_out_dir(s.name, tasks))
     st = Store(store)
     plan = build_plan(s)
     stages = [stage for stage in plan.stages() if not (no_rl and stage.kind == RL)]

@@ -83,6 +83,27 @@ def test_run_then_resume_recomputes_nothing(suite_file: Path, tmp_path: Path,
     pd.testing.assert_frame_equal(met, pd.read_csv(tmp_path / "lb3" / "metrics.csv"))
 
 
+def test_run_on_one_task_reuses_the_whole_suites_stages_and_writes_beside_its_board(
+        suite_file: Path, tmp_path: Path, store: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``repbench run --task``: the task's stages are the whole suite's (all reused here), and
+    the default board is ``leaderboards/<suite>-<task>``, not the whole suite's folder; a task
+    the suite does not have is refused before any work."""
+    monkeypatch.chdir(tmp_path)
+    whole = run_suite(suite_file, store=store, out=tmp_path / "whole", workers=1,
+                      progress=False)
+    one = run_suite(suite_file, store=store, workers=1, progress=False, tasks=["ToyReach-v0"])
+    assert one.report.done == {} and sorted(one.report.cached) == sorted(
+        [*whole.report.cached, *whole.report.done])
+    assert one.out_dir == Path("leaderboards/toy-ToyReach-v0")
+    assert (tmp_path / "leaderboards" / "toy-ToyReach-v0" / "encoders.csv").is_file()
+    assert not (tmp_path / "leaderboards" / "toy").exists()
+    with pytest.raises(ConfigError, match=r"^--task PegInHole-v0 is not a task of suite toy "
+                       r"\(ToyReach-v0\); pass one of those$"):
+        run_suite(suite_file, store=tmp_path / "empty", workers=1, progress=False,
+                  tasks=["PegInHole-v0"])
+    assert not (tmp_path / "empty").exists()
+
+
 def test_two_tasks_get_the_across_tasks_rows_figures_and_section(store: Path,
                                                                   tmp_path: Path) -> None:
     """The toy run's records and a copy of them as a second task (returns reversed): the
