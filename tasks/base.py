@@ -45,9 +45,10 @@ class RobosuiteTask(Task):
         """The default sensors, from ``config_class``'s defaults: camera size and the F/T
         sensor's low-pass cutoff."""
         defaults = {f.name: f.default for f in dataclasses.fields(cls.config_class)}
-        n = defaults["image_size"]
-        return (f"{n}x{n} wrist RGB, 6-axis wrist F/T ({defaults['ft_cutoff_hz']:g} Hz "
-                "low-pass), proprioception")
+        n, cutoff = defaults.get("image_size"), defaults.get("ft_cutoff_hz")
+        if not isinstance(n, int) or not isinstance(cutoff, (int, float)):
+            return ""  # a config without these defaults: say nothing rather than guess
+        return f"{n}x{n} wrist RGB, 6-axis wrist F/T ({cutoff:g} Hz low-pass), proprioception"
 
     def config(self, **overrides: Any) -> Any:
         """The validated configuration, with ``overrides`` applied."""

@@ -381,6 +381,7 @@ def _status(running: dict[Any, str], by_id: dict[str, StageSpec], todo: list[str
     what is left of the running ones' expected times, shared over ``capacity`` workers."""
     names = [by_id[i].label or by_id[i].kind for i in running.values()]
     now = time.time()
+
     def expected(i: str) -> float:
         return times.expected(by_id[i].kind, by_id[i].cost_group)
 
