@@ -26,7 +26,8 @@ before the data it judges, as :mod:`repbench.analysis.claims` does for the paper
 * **The same best metric** (:func:`best_metric_agreement`): the metric with the largest
   within-learned Spearman ρ under the first setting; under the second, **holds** if it is the
   best there too or its interval's high end reaches the second setting's best ρ (the two are
-  not told apart), **does not hold** otherwise.
+  not told apart), **does not hold** otherwise. A "holds" whose interval includes 0 says so in
+  its detail: no metric is told apart there, and the first's best is not shown to predict.
 * **Across tasks** (suites with several tasks): the encoder rankings of every pair of tasks
   (Kendall τ, :data:`TASK_THRESHOLD`: do the tasks rank the encoders alike at all?) and the
   first task's best metric on each other task (the rule above). The
@@ -289,6 +290,11 @@ def best_metric_agreement(first: pd.DataFrame, second: pd.DataFrame, *, check: s
               f"best under {second_label}: {best_b['metric']} (ρ "
               f"{best_b['spearman_learned']:.2f}); {best_a['metric']} under {second_label}: "
               f"ρ {r['spearman_learned']:.2f}")
+    if holds and float(r["spearman_learned_ci_low"]) <= 0:
+        detail += (f"; holds = not told apart from the best there, not evidence that "
+                   f"{best_a['metric']} predicts return under {second_label}: its interval "
+                   f"[{r['spearman_learned_ci_low']:.2f}, {r['spearman_learned_ci_high']:.2f}] "
+                   "includes 0")
     return Check(check, f"within-learned Spearman ρ of {best_a['metric']} under {second_label}",
                  float(r["spearman_learned"]), float(r["spearman_learned_ci_low"]),
                  float(r["spearman_learned_ci_high"]), HOLDS if holds else FAILS, detail)

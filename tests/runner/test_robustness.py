@@ -138,6 +138,13 @@ def test_best_metric_agreement_rule() -> None:
     b_far = _board([("x", 0.1, -0.3, 0.5), ("y", 0.8, 0.6, 0.9)])
     far = best_metric_agreement(a, b_far, check="c", first_label="A", second_label="B")
     assert far.verdict == "does not hold" and "best under B: y" in far.detail
+    assert "not evidence" not in same.detail  # its interval is above 0
+    # nothing predicts under B: x is not told apart from y, so "holds", said for what it is
+    b_none = _board([("x", 0.14, -0.35, 0.68), ("y", 0.29, -0.38, 0.70)])
+    none = best_metric_agreement(a, b_none, check="c", first_label="A", second_label="B")
+    assert none.verdict == "holds" and none.detail.endswith(
+        "; holds = not told apart from the best there, not evidence that x predicts return "
+        "under B: its interval [-0.35, 0.68] includes 0")
 
 
 def test_check_results_adds_agent_and_budget_rows() -> None:
