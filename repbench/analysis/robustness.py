@@ -291,10 +291,10 @@ def best_metric_agreement(first: pd.DataFrame, second: pd.DataFrame, *, check: s
               f"{best_b['spearman_learned']:.2f}); {best_a['metric']} under {second_label}: "
               f"ρ {r['spearman_learned']:.2f}")
     if holds and float(r["spearman_learned_ci_low"]) <= 0:
-        detail += (f"; holds = not told apart from the best there, not evidence that "
-                   f"{best_a['metric']} predicts return under {second_label}: its interval "
-                   f"[{r['spearman_learned_ci_low']:.2f}, {r['spearman_learned_ci_high']:.2f}] "
-                   "includes 0")
+        why = "the best there too" if same else "not told apart from the best there"
+        detail += (f"; holds = {why}, not evidence that {best_a['metric']} predicts return under "
+                   f"{second_label}: its interval [{r['spearman_learned_ci_low']:.2f}, "
+                   f"{r['spearman_learned_ci_high']:.2f}] includes 0")
     return Check(check, f"within-learned Spearman ρ of {best_a['metric']} under {second_label}",
                  float(r["spearman_learned"]), float(r["spearman_learned_ci_low"]),
                  float(r["spearman_learned_ci_high"]), HOLDS if holds else FAILS, detail)

@@ -145,6 +145,11 @@ def test_best_metric_agreement_rule() -> None:
     assert none.verdict == "holds" and none.detail.endswith(
         "; holds = not told apart from the best there, not evidence that x predicts return "
         "under B: its interval [-0.35, 0.68] includes 0")
+    weak = _board([("x", 0.37, -0.71, 0.97), ("y", 0.1, -0.5, 0.6)])  # x is still the best
+    assert best_metric_agreement(a, weak, check="c", first_label="A",
+                                 second_label="B").detail.endswith(
+        "; holds = the best there too, not evidence that x predicts return under B: its "
+        "interval [-0.71, 0.97] includes 0")
 
 
 def test_check_results_adds_agent_and_budget_rows() -> None:
