@@ -281,9 +281,20 @@ def check_claims(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Map
             f"highest direction-normalized Spearman ρ: {best['metric']}",
             float(best[col]), lo, hi, +1, answer,
             f"{int(best[f'n_{scope}'])} encoders, Holm p = {_fmt(p)}, cost "
-            f"{_fmt(float(best.get('cost_s', np.nan)))} s per encoder; intervals overlapping "
+            f"{_cost_text(best)} per encoder; intervals overlapping "
             f"its own: {', '.join(overlap) if overlap else 'none'}"))
     return [c for c in out if c is not None]
+
+
+def _cost_text(row: pd.Series) -> str:
+    """A metric's cost per encoder: CPU seconds of its stage where recorded, else wall seconds.
+
+    Wall time is inflated by a paused or crowded run; CPU time is not, so it is preferred.
+    """
+    cpu = float(row.get("cost_cpu_s", np.nan))
+    if np.isfinite(cpu):
+        return f"{_fmt(cpu)} CPU-s"
+    return f"{_fmt(float(row.get('cost_s', np.nan)))} s (wall)"
 
 
 def claims_table(claims: Sequence[Claim], task: str, agent: str) -> pd.DataFrame:

@@ -124,3 +124,18 @@ def test_pair_intervals_keep_replicates_paired_across_encoders() -> None:
     assert ksg.value == pytest.approx(0.2)
     assert ksg.ci_low == pytest.approx(0.2) and ksg.ci_high == pytest.approx(0.2)
     assert ksg.verdict == "reproduced"
+
+
+@pytest.mark.parametrize("stage_cpu_s", [7.0, None])
+def test_best_metric_claim_quotes_cpu_seconds_where_recorded(stage_cpu_s: float | None) -> None:
+    """Wall time is inflated by a paused run, so the claim quotes the stage's CPU seconds;
+    records without them fall back to wall seconds, labelled as such."""
+    metric_rows, rl_rows, families = _records()
+    if stage_cpu_s is not None:
+        metric_rows = [{**r, "stage_cpu_s": stage_cpu_s} for r in metric_rows]
+    rows, _ = metric_leaderboard(metric_rows, rl_rows, families, DIRECTIONS, n_bootstrap=100)
+    claims = check_claims(metric_rows, rl_rows, pd.DataFrame(rows), families, DIRECTIONS,
+                          task="T", n_bootstrap=100)
+    best = {c.claim: c for c in claims}["Which metric predicts return best (learned encoders)?"]
+    expected = "cost 7 CPU-s per encoder" if stage_cpu_s else "cost 1 s (wall) per encoder"
+    assert expected in best.detail
