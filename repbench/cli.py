@@ -158,7 +158,7 @@ def evaluate(
         help="Parallel workers (default: CPU count).")] = None,
     task: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
         "--task", help="Only this task of the suite (repeat for several; default: all of "
-        "them, e.g. quick's PegInHole-v0 and SurfacePress-v0).")] = None,
+        "them, e.g. quick's PegInHole-v0, SurfacePress-v0 and Door-v0).")] = None,
 ) -> None:
     """Evaluate one encoder against a suite's reference records: compute only its stages,
     merge, and write a leaderboard with it highlighted."""

@@ -130,12 +130,26 @@ def test_a_suite_on_fewer_of_its_tasks_is_a_valid_suite() -> None:
     per-task tables (a bare ``tasks`` update fails validation) and plans exactly quick's
     peg-in-hole stages."""
     quick = load_suite("quick")
-    assert quick.tasks == ["PegInHole-v0", "SurfacePress-v0"]
+    assert quick.tasks == ["PegInHole-v0", "SurfacePress-v0", "Door-v0"]
     with pytest.raises(ConfigError, match=r"'SurfacePress-v0' is not in tasks"):
         build_plan(quick.model_copy(update={"tasks": ["PegInHole-v0"]}))
     peg = quick.only_tasks(["PegInHole-v0"])
     assert peg.tasks == ["PegInHole-v0"] and "SurfacePress-v0" not in peg.task_rl
+    assert "Door-v0" not in peg.task_rl
     assert peg.rl_for("PegInHole-v0") == quick.rl_for("PegInHole-v0")
     mine = plan_identities(peg)
     assert mine and mine < plan_identities(quick)
-    assert plan_identities(quick.only_tasks(["SurfacePress-v0"])) == plan_identities(quick) - mine
+    others = quick.only_tasks(["SurfacePress-v0", "Door-v0"])
+    assert plan_identities(others) == plan_identities(quick) - mine
+
+
+@pytest.mark.parametrize(("task", "folder"), [("SurfacePress-v0", "surface_press"),
+                                              ("Door-v0", "door")])
+def test_quick_on_a_contact_rich_task_runs_the_stages_of_its_committed_suite(
+        task: str, folder: str) -> None:
+    """The records under ``leaderboards/quick/<task>/`` were made by that folder's
+    ``suite_20k.toml``: quick's stages on the task must be the same ones, so that the shipped
+    records count as quick's and a run of quick reuses a store the task's suite filled."""
+    suite_file = ROOT / "leaderboards" / "quick" / folder / "suite_20k.toml"
+    mine = plan_identities(load_suite("quick").only_tasks([task]))
+    assert mine and mine == plan_identities(load_suite(suite_file))
