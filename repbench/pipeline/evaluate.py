@@ -3,7 +3,7 @@
 Computes only that encoder's stages (the suite's datasets and privileged full-state agent are
 reused from the store or regenerated deterministically from their seeds), merges its records
 with the reference records shipped in ``leaderboards/<suite>/`` (the folders its
-``reference.toml`` lists, one per task, else ``records/``), and writes a leaderboard with the new
+``reference.toml`` lists, else ``records/``), and writes a leaderboard with the new
 encoder highlighted. ``metrics_only`` skips its RL runs and predicts its return
 from the reference calibration (:mod:`repbench.analysis.calibration`) instead: minutes, not hours.
 
@@ -54,7 +54,7 @@ class EvaluateResult:
 
 
 #: The manifest in ``leaderboards/<suite>/`` that lists a suite's reference records folders
-#: (``records = ["records", "surface_press/records"]``, relative to the manifest).
+#: (``records = ["records", "b/records"]``, relative to the manifest).
 REFERENCE_MANIFEST = "reference.toml"
 
 
@@ -171,7 +171,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     res.warnings = [*dropped, *warnings]
     res.provenance["evaluated"] = {"encoder": encoder, "metrics_only": metrics_only,
                                    "reference_records": ", ".join(map(str, ref_dirs)),
-                                   "n_reference_records": len(reference_records)}
+                                   "n_reference_records": len({r["identity"]
+                                                               for r in reference_records})}
     if metrics_only:
         from repbench.analysis.robustness import validated_method
         from repbench.report.families import encoder_families

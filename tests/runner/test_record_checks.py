@@ -128,11 +128,12 @@ def test_shipped_reference_records_pass_their_checks(suite: str, tmp_path: Path,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """Every record in the folders ``repbench evaluate`` reads (from the source checkout: the
     working directory has no leaderboards/) passes its checks, and together they hold every
-    task of the suite."""
+    task of the suite, none of them twice (evaluate would read it twice)."""
     monkeypatch.chdir(tmp_path)
     folders = reference_dirs(suite)
     assert folders[0] == ROOT / "leaderboards" / suite / "records"
     tasks: set[str] = set()
+    seen: set[str] = set()
     for folder in folders:
         paths = sorted(folder.rglob("*.json"))
         assert paths, folder
@@ -142,6 +143,9 @@ def test_shipped_reference_records_pass_their_checks(suite: str, tmp_path: Path,
             assert record[CHECKSUM] == record_checksum(record)
         ours = records_of_suite(load_records(folder), load_suite(suite), folder)
         tasks |= {r["task"]["name"] for r in ours}
+        identities = {r["identity"] for r in ours}
+        assert not identities & seen, f"{folder} repeats records of an earlier reference folder"
+        seen |= identities
     assert sorted(tasks) == sorted(load_suite(suite).tasks)
 
 
