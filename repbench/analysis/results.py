@@ -308,16 +308,16 @@ def _encoder_figure(record: Mapping[str, Any], stem: str, label: str, encoder: s
     a leaderboard's ``records/encoder/``, the copy in that leaderboard's ``figures/`` (a
     rebuild from records keeps the training curves and reconstructions it cannot redraw):
     named by ``label`` (``"<encoder> <task>"`` on a board of several tasks), or by the encoder
-    alone (the record's own board had one task)."""
+    alone when the records folder holds one task's encoders (a figure so named belongs to the one
+    task such a board had, so a folder of several tasks never falls back to it)."""
     if not record.get("_path"):
         return None
     here = Path(record["_path"]).parent
     figures = here.parent.parent / "figures"
-    for path in (here / png, figures / f"{stem}_{label.replace(' ', '_')}.png",
-                 figures / f"{stem}_{encoder}.png"):
-        if path.is_file():
-            return path
-    return None
+    candidates = [here / png, figures / f"{stem}_{label.replace(' ', '_')}.png"]
+    if len({p.name.split(".", 1)[0] for p in here.glob("*.json")}) <= 1:  # <task>.<encoder>-...
+        candidates.append(figures / f"{stem}_{encoder}.png")
+    return next((path for path in candidates if path.is_file()), None)
 
 
 def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Path]:

@@ -225,3 +225,32 @@ def test_a_rebuild_leaves_no_figure_the_page_does_not_show(tmp_path: Path) -> No
     names = sorted(p.name for p in (out / "figures").glob("loss_curves_*.png"))
     assert names == ["loss_curves_pca_T-v0.png", "loss_curves_vae_T-v0.png"]
     assert elsewhere.is_file()
+
+
+def test_a_one_task_figure_is_not_taken_for_another_tasks_encoder(tmp_path: Path) -> None:
+    """A records folder of several tasks' encoders never falls back to a figure named by the
+    encoder alone (a one-task board's name): it belongs to whichever task that board had, so
+    quick's SurfacePress-v0 VAE was shown PegInHole-v0's curves. With one task it is that task's."""
+    from repbench.analysis.results import _encoder_figure
+
+    board = tmp_path / "board"
+    encoder_records = board / "records" / "encoder"
+    encoder_records.mkdir(parents=True)
+    (board / "figures").mkdir()
+    one_task_name = board / "figures" / "loss_curves_vae.png"
+    one_task_name.write_bytes(b"\x89PNG peg-in-hole's curves")
+    peg = encoder_records / "PegInHole-v0.vae-0123abcd.json"
+    peg.write_text("{}")
+    record = {"_path": str(peg)}
+    assert _encoder_figure(record, "loss_curves", "vae", "vae", "loss_curves.png") == one_task_name
+
+    press = encoder_records / "SurfacePress-v0.vae-4567ef01.json"
+    press.write_text("{}")
+    for path in (peg, press):
+        label = f"vae {path.name.split('.')[0]}"
+        assert _encoder_figure({"_path": str(path)}, "loss_curves", label, "vae",
+                               "loss_curves.png") is None
+    own = board / "figures" / "loss_curves_vae_SurfacePress-v0.png"
+    own.write_bytes(b"\x89PNG surface press's curves")
+    assert _encoder_figure({"_path": str(press)}, "loss_curves", "vae SurfacePress-v0", "vae",
+                           "loss_curves.png") == own
