@@ -15,7 +15,7 @@ printed and shown on the page.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -215,20 +215,52 @@ def _compare_data(new: list[dict[str, Any]], reference: list[dict[str, Any]]) ->
                        "encoder's metrics are not comparable with the reference")
             break
     ref_sums: dict[tuple[str, str], set[str]] = {}
+    ref_made: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for r in reference:
         for name, digest in (r.get("data_checksums") or {}).items():
             if digest:
                 ref_sums.setdefault((r["task"]["name"], name), set()).add(digest)
+                ref_made.setdefault((r["task"]["name"], name), []).append(r)
     for r in new:
         for name, digest in (r.get("data_checksums") or {}).items():
-            known = ref_sums.get((r["task"]["name"], name))
+            where = (r["task"]["name"], name)
+            known = ref_sums.get(where)
             if digest and known and digest not in known:
                 msg = (f"the regenerated {name} dataset of {r['task']['name']} differs from the "
-                       "reference data (checksum); simulator or library versions differ, so "
+                       f"reference data (checksum); {_why_data_differs(r, ref_made[where])}, so "
                        "compare with care")
                 if msg not in out:
                     out.append(msg)
     return out
+
+
+def _why_data_differs(new: Mapping[str, Any], reference: list[Mapping[str, Any]]) -> str:
+    """What differs between the machine that made ``new`` and those that made ``reference``:
+    library versions (named), the CPU model (named), or neither."""
+    mine = new.get("library_versions") or {}
+    theirs: dict[str, set[str]] = {}
+    for r in reference:
+        for lib, version in (r.get("library_versions") or {}).items():
+            theirs.setdefault(lib, set()).add(str(version))
+    changed = [f"{lib} {mine[lib]} here vs {' / '.join(sorted(theirs[lib]))} in the reference"
+               for lib in sorted(mine) if lib in theirs and str(mine[lib]) not in theirs[lib]]
+    cpu = new.get("cpu")
+    ref_cpus = sorted({str(r["cpu"]) for r in reference if r.get("cpu")})
+    if not cpu or not ref_cpus:
+        cpu_part = "CPU not recorded on both sides"
+    elif cpu not in ref_cpus:
+        cpu_part = f"CPU differs: {cpu} here vs {' / '.join(ref_cpus)} in the reference"
+    else:
+        cpu_part = ""
+    if changed:
+        why = f"simulator or library versions differ ({', '.join(changed)})"
+        return f"{why}; {cpu_part}" if cpu_part else f"{why}; same CPU"
+    if cpu_part.startswith("CPU differs"):
+        return f"same versions; {cpu_part} — float results can differ across CPUs"
+    if cpu_part:
+        return f"same versions; {cpu_part}"
+    return ("same versions and CPU (so not the machine: the task's data collection changed or "
+            "is not deterministic)")
 
 
 def _freeze(value: Any) -> str:

@@ -20,7 +20,8 @@ or the code that made it:
 * ``values`` — the result: a metric's value with its interval (``ci_low``, ``ci_high``); an RL
   run's evaluation return, success rate, per-episode returns and learning curve; an encoder's
   latent size and fit time;
-* ``timings``, ``library_versions``, ``git_commit``, ``created``, ``stage`` (kind, key, inputs);
+* ``timings``, ``library_versions``, ``cpu`` (the CPU's model name: float results of the same
+  versions can differ across CPUs), ``git_commit``, ``created``, ``stage`` (kind, key, inputs);
 * ``checksum`` — SHA-256 of the record's canonical JSON without this field
   (:func:`record_checksum`; schema version 2 on). Every reader checks it
   (:func:`inspect_record`): an edited or damaged record is left out with a one-line warning,
@@ -46,7 +47,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from repbench.pipeline.store import git_commit, library_versions
+from repbench.pipeline.store import cpu_model, git_commit, library_versions
 
 SCHEMA = "repbench.record"
 #: 2: records carry their own ``checksum``; 1 (still read): without it
@@ -110,6 +111,7 @@ def make_record(context: Mapping[str, Any], values: Mapping[str, Any], *,
         "encoder_weights": encoder_weights,
         "timings": jsonable(dict(timings)),
         "library_versions": library_versions(),
+        "cpu": cpu_model(),
         "git_commit": git_commit(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "stage": jsonable(dict(stage)),

@@ -1,9 +1,10 @@
 """The stage store: every stage's output under a content hash of its config and inputs.
 
 An artifact is a directory ``<root>/<stage>/<key>/`` holding the stage's files and a
-``meta.json`` record (config, input keys, seeds, library versions, git commit, timings, and the
-SHA-256 of every file). It is built in ``<root>/.tmp/`` and appears under its final name by one
-``rename``: a reader sees a complete artifact or none, even if the writer is killed with -9.
+``meta.json`` record (config, input keys, seeds, library versions, CPU model, git commit,
+timings, and the SHA-256 of every file). It is built in ``<root>/.tmp/`` and appears under its
+final name by one ``rename``: a reader sees a complete artifact or none, even if the writer is
+killed with -9.
 A later reader that finds a file missing or failing its checksum reports it, moves the artifact
 aside to ``<root>/.corrupt/`` and recomputes.
 
@@ -110,6 +111,21 @@ def library_versions() -> dict[str, str]:
         with contextlib.suppress(PackageNotFoundError):
             out[dist] = version(dist)
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``'s ``model name``, else
+    :func:`platform.processor`, else the machine type). Float results of one code and one set of
+    library versions can differ across CPUs (torch and numpy pick kernels by instruction set),
+    so every record says which CPU made it; it is no library version and is kept apart."""
+    with contextlib.suppress(OSError), open("/proc/cpuinfo") as f:
+        for line in f:
+            name, sep, value = line.partition(":")
+            if sep and value.strip() and name.strip() in ("model name", "Model", "Processor",
+                                                          "cpu model"):
+                return " ".join(value.split())
+    return platform.processor() or platform.machine() or "unknown"
 
 
 @functools.lru_cache(maxsize=1)
@@ -327,7 +343,7 @@ class Store:
                 "wall_time_s": round(time.time() - start_wall, 3),
                 "cpu_time_s": round(time.process_time() - start_cpu, 3),
                 "versions": library_versions(), "git_commit": git_commit(),
-                "host": platform.node(), **writer.extra_meta,
+                "cpu": cpu_model(), "host": platform.node(), **writer.extra_meta,
             }
             meta_path = tmp / META
             with open(meta_path, "w") as f:
