@@ -28,3 +28,13 @@ def test_ci_runs_readmes_test_command() -> None:
     final = test_cmd.split("&&")[-1].strip()
     ci = (ROOT / ".ci" / "run").read_text().splitlines()
     assert final in [line.strip() for line in ci], f"CI must run {final!r}"
+
+
+def test_readme_is_short_and_cites_no_issue_numbers() -> None:
+    """A newcomer reads README in a minute; the research log with its issue numbers lives in
+    ``docs/``."""
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= 200, f"README has {len(lines)} lines; move detail to docs/"
+    cited = [f"{n}: {line}" for n, line in enumerate(lines, 1)
+             if re.search(r"[Ii]ssue \d+|#\d+", line)]
+    assert not cited, "README cites issue numbers:\n" + "\n".join(cited)
