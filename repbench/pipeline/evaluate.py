@@ -32,7 +32,7 @@ from repbench.analysis.results import (
 from repbench.errors import ConfigError
 from repbench.pipeline.executors import RunReport, make_executor, run_stages
 from repbench.pipeline.plan import build_plan
-from repbench.pipeline.preflight import check_out_dir
+from repbench.pipeline.preflight import check_dataset_sizes, check_out_dir
 from repbench.pipeline.records import identity_key
 from repbench.pipeline.runner import records_of_suite, suite_on_tasks
 from repbench.pipeline.stages import RL
@@ -147,6 +147,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     plan = build_plan(one)
     stages = [s for s in plan.stages() if not (metrics_only and s.kind == RL)]
     st = Store(store)
+    check_dataset_sizes(plan, st)
     ex = make_executor(executor, str(st.root), workers)
     print(f"evaluate {encoder} on suite {base.name}: {len(stages)} stages"
           f"{' (metrics only, no RL)' if metrics_only else ''}; reference records "

@@ -24,7 +24,7 @@ from repbench.analysis.results import (
 from repbench.errors import ConfigError, RepbenchError
 from repbench.pipeline.executors import RunReport, make_executor, run_stages
 from repbench.pipeline.plan import Plan, build_plan
-from repbench.pipeline.preflight import check_out_dir
+from repbench.pipeline.preflight import check_dataset_sizes, check_out_dir
 from repbench.pipeline.records import identity_key
 from repbench.pipeline.stages import RL
 from repbench.pipeline.store import Store
@@ -82,6 +82,7 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name, tasks))
     st = Store(store)
     plan = build_plan(s)
+    check_dataset_sizes(plan, st)
     stages = [stage for stage in plan.stages() if not (no_rl and stage.kind == RL)]
     n_workers = workers or min(os.cpu_count() or 1, 8)
     ex = make_executor(executor, str(st.root), n_workers, ray_address)

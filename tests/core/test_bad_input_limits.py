@@ -1,0 +1,86 @@
+"""Bad input (issue 45, part 2): sizes, names, shapes and paths a person can get wrong, each
+refused with one line naming the thing and the fix, exit code 2, before any stage runs. Each test
+failed on the code before its fix."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from repbench.errors import ConfigError
+from repbench.pipeline.preflight import check_dataset_sizes, dataset_bytes_per_step
+from repbench.pipeline.store import Store
+
+from ..runner.tiny_toy_suite import tiny_toy_suite
+from .test_bad_input import _cli
+
+TOY = tiny_toy_suite("toylimits", ["oracle"])
+
+
+@pytest.fixture
+def no_stage_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any stage that starts fails the test (the checks must come first)."""
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a stage ran before the bad input was noticed")
+
+    monkeypatch.setattr("repbench.pipeline.runner.run_stages", refuse)
+    monkeypatch.setattr("repbench.pipeline.evaluate.run_stages", refuse)
+
+
+def _suite(tmp_path: Path, text: str = TOY, name: str = "toylimits") -> Path:
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+# -- dataset sizes ------------------------------------------------------------------------------
+
+def test_huge_dataset_is_refused_by_what_it_needs(capsys: pytest.CaptureFixture[str],
+                                                  tmp_path: Path, no_stage_runs: None) -> None:
+    """Before: accepted; collection died at ~10 GB with a MemoryError that named nothing."""
+    suite = _suite(tmp_path, TOY.replace("random_episodes = 3", "random_episodes = 10000000"))
+    err = _cli(capsys, "run", "--suite", str(suite), "--store", str(tmp_path / "s"),
+               "--out", str(tmp_path / "lb"), "--workers", "1")
+    assert "dataset.random_episodes = 10000000" in err
+    assert " GB" in err and "memory" in err
+    assert not (tmp_path / "s" / "dataset").exists()
+
+
+def test_per_task_override_is_named(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                    no_stage_runs: None) -> None:
+    suite = _suite(tmp_path, TOY + '[task_dataset."ToyReach-v0"]\nrandom_steps = 100000000\n')
+    err = _cli(capsys, "run", "--suite", str(suite), "--store", str(tmp_path / "s"),
+               "--out", str(tmp_path / "lb"), "--workers", "1")
+    assert ("dataset.random_episodes = 3 and task_dataset.ToyReach-v0.random_steps = 100000000"
+            in err)
+
+
+def test_dataset_larger_than_the_free_disk_is_refused(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    from repbench.pipeline import preflight
+    from repbench.pipeline.plan import build_plan
+    from repbench.pipeline.suite import load_suite
+
+    plan = build_plan(load_suite(_suite(tmp_path)))
+    store = Store(tmp_path / "s")
+    check_dataset_sizes(plan, store)  # the tiny suite fits
+    monkeypatch.setattr(preflight, "_free_disk_bytes", lambda path: 1000)
+    with pytest.raises(ConfigError, match=r"dataset\.random_episodes = 3.*disk of the store"):
+        check_dataset_sizes(plan, store)
+    monkeypatch.setattr(preflight, "_available_memory_bytes", lambda: 1000)
+    with pytest.raises(ConfigError, match=r"dataset\.random_episodes = 3.*memory"):
+        check_dataset_sizes(plan, store)
+
+
+def test_bytes_per_step_counts_the_image() -> None:
+    assert 64 * 64 * 3 < dataset_bytes_per_step(64) < 64 * 64 * 3 + 1024
+    assert dataset_bytes_per_step(128) > 4 * 64 * 64 * 3
+
+
+def test_builtin_suites_pass_the_size_check(tmp_path: Path) -> None:
+    from repbench.pipeline.plan import build_plan
+    from repbench.pipeline.suite import load_suite
+
+    for name in ("smoke", "quick", "paper"):
+        check_dataset_sizes(build_plan(load_suite(name)), Store(tmp_path / "s"))
