@@ -28,7 +28,7 @@ from repbench.pipeline.preflight import check_dataset_sizes, check_out_dir
 from repbench.pipeline.records import identity_key
 from repbench.pipeline.stages import RL
 from repbench.pipeline.store import Store
-from repbench.pipeline.suite import BUILTIN_SUITES, Suite, load_suite
+from repbench.pipeline.suite import BUILTIN_SUITES, Suite, check_suite_name, load_suite
 from repbench.report.leaderboard import write_leaderboards
 
 log = logging.getLogger(__name__)
@@ -44,8 +44,17 @@ class RunResult:
 
 def default_out_dir(suite_name: str, tasks: Sequence[str] | None = None) -> Path:
     """``leaderboards/<suite>``; on some of its tasks ``leaderboards/<suite>-<task>...``, so
-    that a one-task run never overwrites the whole suite's board."""
-    return Path("leaderboards") / "-".join([suite_name, *(tasks or [])])
+    that a one-task run never overwrites the whole suite's board. Always one folder directly
+    inside ``leaderboards/``: a task given by reference (``path/to/file.py:Task``) has the
+    characters a folder name cannot hold replaced by ``_``; a bad suite name is a
+    ConfigError."""
+    try:
+        check_suite_name(suite_name)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    safe = ["".join(c if c.isalnum() or c in "-_." else "_" for c in t).replace("..", "_")
+            for t in tasks or []]
+    return Path("leaderboards") / "-".join([suite_name, *safe])
 
 
 def suite_on_tasks(suite: Suite, tasks: Sequence[str] | None) -> Suite:

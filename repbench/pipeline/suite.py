@@ -25,6 +25,7 @@ not converted; RL seeds are distinct and non-negative; step budgets are at most
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
@@ -49,6 +50,18 @@ BUILTIN_SUITES = ("smoke", "quick", "paper")
 #: Upper bound of an RL step budget (``rl.train_steps``, ``rl.full_state_train_steps``): 10⁹
 #: steps is years of SAC on one machine; a larger value is a typo.
 MAX_TRAIN_STEPS = 10**9
+#: A suite's name is a folder name (its board goes to ``leaderboards/<name>``): letters, digits,
+#: ``_``, ``-`` and ``.``, with no ``..`` (which would climb out of ``leaderboards/``).
+SUITE_NAME = re.compile(r"^[A-Za-z0-9_.-]+$")
+
+
+def check_suite_name(name: str) -> str:
+    """``name`` if it is a valid suite name (:data:`SUITE_NAME`), else ValueError saying why."""
+    if not SUITE_NAME.match(name) or ".." in name:
+        raise ValueError(f"suite name {name!r} must be a folder name: letters, digits, '_', '-' "
+                         "and '.', without '..' (its board goes to leaderboards/<name>); "
+                         "rename it, e.g. name = \"my_suite\"")
+    return name
 
 
 class _Strict(BaseModel):
@@ -199,6 +212,11 @@ class Suite(_Strict):
         return self.model_copy(update={"tasks": keep, **{
             name: {t: v for t, v in getattr(self, name).items() if t in keep}
             for name in PER_TASK_FIELDS}})
+
+    @field_validator("name")
+    @classmethod
+    def _folder_name(cls, v: str) -> str:
+        return check_suite_name(v)
 
     @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod

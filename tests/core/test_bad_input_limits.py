@@ -84,3 +84,38 @@ def test_builtin_suites_pass_the_size_check(tmp_path: Path) -> None:
 
     for name in ("smoke", "quick", "paper"):
         check_dataset_sizes(build_plan(load_suite(name)), Store(tmp_path / "s"))
+
+
+# -- suite names --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["../../x", "..", "a/b", "x..y", "", "with space", "/abs"])
+def test_suite_name_that_is_no_folder_name_is_refused(capsys: pytest.CaptureFixture[str],
+                                                      tmp_path: Path, name: str,
+                                                      no_stage_runs: None,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Before: name = "../../x" wrote its board to ../../x, outside leaderboards/."""
+    monkeypatch.chdir(tmp_path)
+    suite = _suite(tmp_path, TOY.replace('name = "toylimits"', f"name = {name!r}"))
+    err = _cli(capsys, "run", "--suite", str(suite), "--store", str(tmp_path / "s"),
+               "--workers", "1")
+    assert "field 'name'" in err and "letters, digits" in err
+    assert not list(tmp_path.parent.glob("x")) and not (tmp_path / "leaderboards").exists()
+
+
+def test_good_suite_names_load(tmp_path: Path) -> None:
+    from repbench.pipeline.suite import load_suite
+
+    for name in ("quick", "my_suite-2.v1"):
+        path = _suite(tmp_path, TOY.replace('name = "toylimits"', f"name = {name!r}"))
+        assert load_suite(path).name == name
+
+
+def test_default_out_dir_stays_inside_leaderboards() -> None:
+    from repbench.pipeline.runner import default_out_dir
+
+    root = Path("leaderboards").resolve()
+    for tasks in ([], ["ToyReach-v0"], ["../../evil.py:Task"], ["/etc/x.py:T"]):
+        out = default_out_dir("quick", tasks).resolve()
+        assert out.parent == root, out
+    with pytest.raises(ConfigError, match="suite name"):
+        default_out_dir("../../x")
