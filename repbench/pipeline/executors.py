@@ -196,9 +196,23 @@ class LocalPoolExecutor:
                     p.kill()
 
 
+#: How often Ray reruns a stage whose worker process or node died (a node lost, preempted or
+#: out of memory) before the stage is reported failed; Ray's own default for tasks. Python
+#: exceptions are never retried: :func:`_execute_catching` returns them as data.
+RAY_MAX_RETRIES = 3
+
+
 class RayExecutor:
     """Runs each stage as a Ray task (``num_cpus=1``). The store root must be on a filesystem
-    every Ray node sees (shared disk) for a multi-node cluster."""
+    every Ray node sees (shared disk) for a multi-node cluster.
+
+    A stage lost with its node or worker process is rerun by Ray (up to
+    :data:`RAY_MAX_RETRIES` times, on any node with a free CPU): the store's stage lock, which
+    the kernel drops with the dead process, lets the rerun start, and the dead one's
+    half-written temporary folder never becomes an artifact (the next run removes it). Stages
+    that finished stay in the store. A stage lost more often is reported failed; running the
+    command again computes just the stages missing.
+    """
 
     def __init__(self, store_root: str, address: str | None, workers: int | None) -> None:
         try:
@@ -209,15 +223,16 @@ class RayExecutor:
         if not ray.is_initialized():
             if address:
                 ray.init(address=address, log_to_driver=False)
-            else:
-                ray.init(num_cpus=workers or os.cpu_count() or 1, log_to_driver=False,
-                         include_dashboard=False)
+            else:  # "local": a new instance, even where `ray start` left a cluster's address
+                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1,
+                         log_to_driver=False, include_dashboard=False)
         self.root = store_root
         self.capacity = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        self._remote = ray.remote(num_cpus=1, max_retries=1)(_execute_catching)
+        self._remote = ray.remote(num_cpus=1, max_retries=RAY_MAX_RETRIES)(_execute_catching)
 
     def submit(self, spec: StageSpec) -> Any:
-        return self._remote.remote(spec, self.root)
+        # named after the stage in Ray's dashboard and `ray list tasks`
+        return self._remote.options(name=spec.label or _stage_id(spec)).remote(spec, self.root)
 
     def wait_any(self, handles: Iterable[Any]) -> list[tuple[Any, Any]]:
         ready, _ = self._ray.wait(list(handles), num_returns=1)
@@ -226,7 +241,7 @@ class RayExecutor:
             try:
                 out.append((ref, self._ray.get(ref)))
             except Exception as exc:
-                out.append((ref, {"error": f"Ray task failed: {exc}"}))
+                out.append((ref, {"error": _ray_failure(exc)}))
         return out
 
     def shutdown(self) -> None:
@@ -234,6 +249,23 @@ class RayExecutor:
 
     def abort(self) -> None:
         pass
+
+
+def _ray_failure(exc: BaseException) -> str:
+    """One line for a Ray task that did not return: lost (its node or worker process died more
+    often than Ray retries), or another Ray error."""
+    import ray.exceptions as rex
+
+    lines = str(exc).strip().splitlines()
+    first = lines[0].split(". ")[0].rstrip(".") if lines else ""
+    lost = tuple(c for c in (getattr(rex, n, None) for n in (
+        "NodeDiedError", "WorkerCrashedError", "OutOfMemoryError", "LocalRayletDiedError",
+        "ObjectLostError")) if isinstance(c, type))
+    if lost and isinstance(exc, lost):
+        return (f"lost with its Ray node or worker process, on Ray's reruns too "
+                f"({type(exc).__name__}: {first}); the stages that finished are kept: run the "
+                "same command again to compute the rest")
+    return f"Ray task failed ({type(exc).__name__}): {first}"
 
 
 def make_executor(kind: str, store_root: str, workers: int | None = None,
