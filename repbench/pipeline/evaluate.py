@@ -34,7 +34,7 @@ from repbench.pipeline.executors import RunReport, make_executor, run_stages
 from repbench.pipeline.plan import build_plan
 from repbench.pipeline.preflight import check_dataset_sizes, check_out_dir
 from repbench.pipeline.records import identity_key
-from repbench.pipeline.runner import records_of_suite, suite_on_tasks
+from repbench.pipeline.runner import cap_local_workers, records_of_suite, suite_on_tasks
 from repbench.pipeline.stages import RL
 from repbench.pipeline.store import Store
 from repbench.pipeline.suite import load_suite
@@ -148,7 +148,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     stages = [s for s in plan.stages() if not (metrics_only and s.kind == RL)]
     st = Store(store)
     check_dataset_sizes(plan, st)
-    ex = make_executor(executor, str(st.root), workers)
+    ex = make_executor(executor, str(st.root), cap_local_workers(workers, executor))
     print(f"evaluate {encoder} on suite {base.name}: {len(stages)} stages"
           f"{' (metrics only, no RL)' if metrics_only else ''}; reference records "
           f"{', '.join(map(str, ref_dirs))}; "

@@ -3,9 +3,11 @@ leaderboards."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -93,7 +95,7 @@ def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | 
     plan = build_plan(s)
     check_dataset_sizes(plan, st)
     stages = [stage for stage in plan.stages() if not (no_rl and stage.kind == RL)]
-    n_workers = workers or min(os.cpu_count() or 1, 8)
+    n_workers = cap_local_workers(workers, executor) or min(usable_cpus(), 8)
     ex = make_executor(executor, str(st.root), n_workers, ray_address)
     print(f"suite {s.name}: {len(stages)} stages ({len(s.tasks)} tasks × {len(s.encoders)} "
           f"encoders × {len(s.metrics)} metrics, "
@@ -209,6 +211,28 @@ def check_workers(workers: int | None) -> None:
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}; leave it out to use "
                           "one worker per CPU core")
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity mask, else the machine's count)."""
+    if hasattr(os, "sched_getaffinity"):
+        with contextlib.suppress(OSError):
+            return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
+def cap_local_workers(workers: int | None, executor: str = "local") -> int | None:
+    """``workers`` for the local executor, at most :func:`usable_cpus` (more processes than
+    CPUs only compete for them and multiply memory), with a one-line warning on stderr when
+    it was more. Ray's workers run on the cluster's machines: not capped here."""
+    if executor != "local" or workers is None:
+        return workers
+    cpus = usable_cpus()
+    if workers > cpus:
+        print(f"repbench: warning: --workers {workers} is more than the {cpus} CPUs this "
+              f"process may use; using {cpus}", file=sys.stderr, flush=True)
+        return cpus
+    return workers
 
 
 def _companion_results(folder: str | Path, option: str, example: str, what: str) -> Results:

@@ -119,3 +119,64 @@ def test_default_out_dir_stays_inside_leaderboards() -> None:
         assert out.parent == root, out
     with pytest.raises(ConfigError, match="suite name"):
         default_out_dir("../../x")
+
+
+# -- worker counts ------------------------------------------------------------------------------
+
+class _Stop(Exception):
+    pass
+
+
+def _usable_cpus() -> int:
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
+@pytest.mark.parametrize("command", ["run", "evaluate"])
+def test_workers_beyond_the_cpus_are_capped_with_a_warning(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        command: str) -> None:
+    """Before: --workers 1000 started a pool of 1000 spawned processes on a 2-core machine."""
+    asked: list[int | None] = []
+
+    def executor(kind: str, root: str, workers: int | None = None, *args: object) -> None:
+        asked.append(workers)
+        raise _Stop
+
+    monkeypatch.setattr("repbench.pipeline.runner.make_executor", executor)
+    monkeypatch.setattr("repbench.pipeline.evaluate.make_executor", executor)
+    from repbench.pipeline.evaluate import evaluate_encoder
+    from repbench.pipeline.runner import run_suite
+
+    with pytest.raises(_Stop):
+        if command == "run":
+            run_suite(_suite(tmp_path), store=tmp_path / "s", out=tmp_path / "lb",
+                      workers=1000, progress=False)
+        else:
+            evaluate_encoder("pca", "smoke", metrics_only=True, store=tmp_path / "s",
+                             out=tmp_path / "lb", workers=1000, progress=False,
+                             reference=Path(__file__).resolve().parents[2] / "leaderboards"
+                             / "smoke" / "records")
+    assert asked == [_usable_cpus()]
+    err = capsys.readouterr().err
+    [line] = [x for x in err.splitlines() if "--workers" in x]
+    assert f"--workers 1000 is more than the {_usable_cpus()} CPUs" in line
+    assert f"using {_usable_cpus()}" in line
+
+
+def test_workers_within_the_cpus_are_kept(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    asked: list[int | None] = []
+
+    def executor(kind: str, root: str, workers: int | None = None, *args: object) -> None:
+        asked.append(workers)
+        raise _Stop
+
+    monkeypatch.setattr("repbench.pipeline.runner.make_executor", executor)
+    from repbench.pipeline.runner import run_suite
+
+    with pytest.raises(_Stop):
+        run_suite(_suite(tmp_path), store=tmp_path / "s", out=tmp_path / "lb", workers=1,
+                  progress=False)
+    assert asked == [1] and "--workers" not in capsys.readouterr().err
