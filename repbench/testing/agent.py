@@ -80,7 +80,10 @@ def check_agent(agent_or_name: Any, task: Task | None = None, encoder: Encoder |
         agent_or_name: ``"sac"``, ``SACAgent`` or ``SACAgent(...)``.
         task: default :class:`repbench.testing.toy_task.ToyReachTask` (horizon 20).
         encoder: a fitted encoder; default: the true state (fitted on a tiny random dataset).
-        train_steps, eval_episodes, curve_points, seed: the tiny budget.
+        train_steps: environment steps of the tiny budget.
+        eval_episodes: evaluation episodes of the tiny budget.
+        curve_points: learning-curve points of the tiny budget.
+        seed: the training seed.
         params: constructor arguments (with a name or class); small ``learning_starts``,
             ``batch_size`` and ``normalize_steps`` are used unless given.
 
