@@ -5,8 +5,9 @@ An artifact is a directory ``<root>/<stage>/<key>/`` holding the stage's files a
 timings, and the SHA-256 of every file). It is built in ``<root>/.tmp/`` and appears under its
 final name by one ``rename``: a reader sees a complete artifact or none, even if the writer is
 killed with -9.
-A later reader that finds a file missing or failing its checksum reports it, moves the artifact
-aside to ``<root>/.corrupt/`` and recomputes.
+A later reader that finds a file missing or failing its checksum, or a file where an artifact's
+(or a stage's) folder should be, reports it, moves it aside to ``<root>/.corrupt/`` and
+recomputes.
 
 Two runs may share a store: a stage is computed under its lock ``<root>/<stage>/<key>.lock``
 (``fcntl.flock``, held while its artifact is written), so a second run waits for a stage the
@@ -230,6 +231,8 @@ class Store:
         """The finished artifact, or None if absent; a corrupt one is quarantined → None."""
         path = self.artifact_dir(stage, key)
         if not path.is_dir():
+            self._file_in_the_way(path.parent, "a stage folder")
+            self._file_in_the_way(path, f"the artifact folder of {stage}/{key}")
             return None
         try:
             return self._load(stage, key, path, verify=verify)
@@ -257,6 +260,19 @@ class Store:
                     )
         return Artifact(stage, key, path, meta)
 
+    def _file_in_the_way(self, path: Path, what: str) -> None:
+        """A file (or a dangling link) where the store keeps a folder is a corrupt artifact:
+        it is moved aside to ``.corrupt/`` like one, so the stage is recomputed (a rename of
+        the new artifact onto it would fail). StoreError when it cannot be moved."""
+        if path.is_dir() or not os.path.lexists(path):
+            return
+        log.warning("%s is a file, not %s; moved aside to %s, it will be recomputed",
+                    path, what, self.root / ".corrupt")
+        self._quarantine(path)
+        if os.path.lexists(path) and not path.is_dir():
+            raise StoreError(f"{path} is a file, not {what}, and it cannot be moved aside; "
+                             "remove it, or pass another --store")
+
     def _quarantine(self, path: Path) -> None:
         dest = self.root / ".corrupt" / f"{path.parent.name}-{path.name}-{uuid.uuid4().hex[:8]}"
         dest.parent.mkdir(parents=True, exist_ok=True)
@@ -267,6 +283,7 @@ class Store:
         """Every verified artifact of a stage (used to rebuild leaderboards)."""
         base = self.root / stage
         if not base.is_dir():
+            self._file_in_the_way(base, "a stage folder")
             return []
         arts = (self.get(stage, p.name) for p in sorted(base.iterdir()) if p.is_dir())
         return [a for a in arts if a is not None]
@@ -294,6 +311,7 @@ class Store:
                 if ident in _HELD:
                     _HELD[ident][1] -= 1
             return
+        self._file_in_the_way(path.parent, "a stage folder")
         path.parent.mkdir(parents=True, exist_ok=True)
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
@@ -354,7 +372,7 @@ class Store:
             final.parent.mkdir(parents=True, exist_ok=True)
             # another worker finished first (keep its copy), or a corrupt leftover (get()
             # quarantines it, then the rename below succeeds)
-            if final.exists() and self.get(stage, key) is not None:
+            if os.path.lexists(final) and self.get(stage, key) is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
                 return
             os.rename(tmp, final)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -71,6 +72,33 @@ def test_corrupt_artifact_detected_and_quarantined(tmp_path: Path, damage: str,
     assert not path.exists() and any((tmp_path / ".corrupt").iterdir())
     _put(store, "k3")  # recomputation succeeds
     assert store.get("stage", "k3") is not None
+
+
+
+@pytest.mark.parametrize("where", ["artifact", "stage folder"])
+def test_artifact_folder_replaced_by_a_file_is_quarantined(tmp_path: Path, where: str,
+                                                           caplog: pytest.LogCaptureFixture
+                                                           ) -> None:
+    """Before: the stage was recomputed, then its commit failed with a raw NotADirectoryError
+    (rename onto the file), and every later run failed the same way. Now the file is moved
+    aside to .corrupt/ like any corrupt artifact, and the stage is recomputed."""
+    store = Store(tmp_path)
+    _put(store, "k5")
+    _put(store, "other")
+    path = store.artifact_dir("stage", "k5")
+    target = path if where == "artifact" else path.parent
+    shutil.rmtree(target)
+    target.write_text("not a folder")
+    assert store.get("stage", "k5") is None
+    assert [a.key for a in store.list("stage")] == (["other"] if where == "artifact" else [])
+    what = "the artifact folder of stage/k5" if where == "artifact" else "a stage folder"
+    assert f"{target} is a file, not {what}" in caplog.text
+    assert "will be recomputed" in caplog.text
+    assert target.is_dir() or not target.exists()
+    kept = [p for p in (tmp_path / ".corrupt").iterdir() if p.is_file()]
+    assert [p.read_text() for p in kept] == ["not a folder"]  # moved aside, not deleted
+    _put(store, "k5")  # recomputation succeeds
+    assert store.get("stage", "k5") is not None
 
 
 def test_unwritable_root_is_a_clear_error(tmp_path: Path) -> None:
