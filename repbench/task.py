@@ -15,10 +15,27 @@ from typing import Any, ClassVar
 import numpy as np
 
 from repbench.dataset import FT, IMAGE, PROPRIO, Dataset
+from repbench.errors import DataError
 
 #: A data-collection policy: observation batch of one step (modality → array, with
 #: ``true_state`` added) → action.
 Policy = Callable[[Mapping[str, np.ndarray]], np.ndarray]
+
+
+def action_vector(action: Any, size: int, owner: str, dtype: Any = np.float64) -> np.ndarray:
+    """``action`` as a flat vector of ``size`` values; :class:`~repbench.errors.DataError`
+    naming ``owner`` (e.g. ``PegInHoleEnv.step``), the expected shape and the one passed when
+    it holds another number of values (any shape with ``size`` values, such as ``(1, size)``
+    from a batch of one, is accepted as before)."""
+    try:
+        arr = np.asarray(action, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{owner}: action must be {size} numbers (expected shape ({size},)), "
+                        f"got {type(action).__name__} {action!r:.60} ({exc})") from None
+    if arr.size != size:
+        raise DataError(f"{owner}: action has the wrong shape: expected shape ({size},) "
+                        f"({size} values in [-1, 1]), got shape {arr.shape}")
+    return arr.reshape(size)
 
 
 class Task(abc.ABC):

@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from repbench.task import action_vector
 from repbench_tasks.config import START_KINDS, PegInHoleConfig
 from repbench_tasks.rendering import WRIST_CAMERA, WristRenderer
 from repbench_tasks.rewards import RewardParams, staged_reward
@@ -200,7 +201,7 @@ class WristTaskEnv(gym.Env):
     def step(self, action: np.ndarray
              ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Move the tool point by ``action * action_scale`` (clipped to the workspace)."""
-        a = np.clip(np.asarray(action, dtype=np.float64).reshape(3), -1.0, 1.0)
+        a = np.clip(action_vector(action, 3, f"{type(self).__name__}.step"), -1.0, 1.0)
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action must be finite, got {action!r}")
         tip = self.tip_position()

@@ -28,7 +28,7 @@ from repbench.dataset import (
     as_observation_batch,
 )
 from repbench.errors import ConfigError, DataError
-from repbench.task import Policy, Task
+from repbench.task import Policy, Task, action_vector
 
 _HOLE_COLOUR = np.array([40, 90, 230], np.uint8)
 _MASS_COLOUR = np.array([230, 50, 40], np.uint8)
@@ -88,7 +88,8 @@ class ToyReachEnv(gym.Env):
 
     def step(self, action: np.ndarray
              ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
-        a = np.clip(np.asarray(action, np.float32).reshape(2), -1.0, 1.0)
+        a = np.clip(action_vector(action, 2, f"{type(self).__name__}.step", np.float32),
+                    -1.0, 1.0)
         self._vel = 0.5 * self._vel + 0.5 * a * self.max_speed
         target = self._pos + self._vel
         clipped = np.clip(target, -1.0, 1.0)
