@@ -7,8 +7,10 @@ stage is reported and its dependants are skipped, the rest of the suite still ru
 Ctrl-C: pool workers ignore SIGINT (they start with it blocked, so not even a Ctrl-C during
 their start-up reaches them); the parent gets the KeyboardInterrupt, kills its workers (their
 running stages are never committed) and re-raises it, so the command line prints its
-one-line "interrupted" message. In-process, :func:`repbench.pipeline.stages.execute` itself makes
-sure an interrupted stage is not committed.
+one-line "interrupted" message. SIGTERM to the parent is the same (the command line turns it
+into a KeyboardInterrupt); a worker's SIGTERM releases its named semaphores and exits at once.
+In-process, :func:`repbench.pipeline.stages.execute` itself makes sure an interrupted stage is
+not committed.
 """
 
 from __future__ import annotations
@@ -103,9 +105,22 @@ def _init_worker(parent: int, death_signal: bool) -> None:
     stops its workers), then unblock SIGINT, which the worker was started with blocked
     (:func:`_sigint_blocked`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # also discards one already pending
+    signal.signal(signal.SIGTERM, _stop_worker)
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _die_with_parent(parent, death_signal)
+
+
+def _stop_worker(signum: int, frame: Any) -> None:
+    """SIGTERM in a pool worker (the parent stopping it on Ctrl-C or SIGTERM): release the
+    named semaphores this process made (tqdm's lock, joblib's ...), then exit at once, so its
+    running stage is never committed. Killed without this, the worker left them registered
+    and the resource tracker warned of "leaked semaphore objects" as the run exited."""
+    from multiprocessing import util
+
+    with contextlib.suppress(Exception):
+        util._run_finalizers(0)  # type: ignore[attr-defined]  # SemLock cleanups: unlink
+    os._exit(128 + signum)
 
 
 #: prctl option: the signal a process gets when its parent dies (Linux, <sys/prctl.h>)
@@ -183,7 +198,8 @@ class LocalPoolExecutor:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
     def abort(self) -> None:
-        """Stop at once (Ctrl-C): kill the workers, so no running stage is committed."""
+        """Stop at once (Ctrl-C, SIGTERM): stop the workers (:func:`_stop_worker`), so no
+        running stage is committed."""
         processes = list((getattr(self._pool, "_processes", None) or {}).values())
         for p in processes:
             with contextlib.suppress(OSError, ValueError):

@@ -13,6 +13,7 @@ import json
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -322,7 +323,11 @@ def interrupts_recorded() -> Iterator[list[int]]:
 
     signal.signal(signal.SIGINT, record)
     try:
-        yield seen
+        with warnings.catch_warnings():
+            # the interrupt is handled here (the stage is not committed, the command line says
+            # so in one line): scikit-learn's note that it swallowed one is noise on top
+            warnings.filterwarnings("ignore", message="Training interrupted by user")
+            yield seen
     finally:
         signal.signal(signal.SIGINT, previous)
 
