@@ -7,7 +7,9 @@ exit with code 2; a traceback means a bug in repbench or a plugin.
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -188,8 +190,37 @@ def task_preview(
     typer.echo(f"preview written to {path}")
 
 
+#: Exit code of a run stopped by Ctrl-C (128 + SIGINT) and by SIGTERM (128 + SIGTERM), as a
+#: shell reports a process either signal ended.
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+_terminated: list[int] = []  # SIGTERM received (by :func:`_on_sigterm`)
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    """SIGTERM (``kill PID``, a scheduler's or container's stop) stops the command as Ctrl-C
+    does: a KeyboardInterrupt in the main thread, so the same clean stop runs (running stages
+    are not committed, pool workers are stopped, finished stages stay in the store). A second
+    SIGTERM during that stop ends the process at once."""
+    _terminated.append(signum)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: user errors → one line on stderr, exit code 2."""
+    """Console entry point: user errors → one line on stderr, exit code 2; Ctrl-C and SIGTERM
+    → one line, exit code 130 and 143."""
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.getsignal(signal.SIGTERM) if in_main else None
+    if in_main and previous in (signal.SIG_DFL, None):
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        _main(argv)
+    finally:
+        if in_main and previous in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _main(argv: list[str] | None) -> None:
     try:
         app(args=argv, prog_name="repbench", standalone_mode=True)
     except RepbenchError as exc:
@@ -214,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
 def _interrupted() -> None:
     typer.echo("repbench: interrupted; finished stages are kept in the store — run the "
                "same command again to resume", err=True)
-    sys.exit(130)
+    sys.exit(EXIT_TERMINATED if _terminated else EXIT_INTERRUPTED)
 
 
 def _caused_by_ctrl_c(exc: BaseException) -> bool:

@@ -303,7 +303,9 @@ def interrupts_recorded() -> Iterator[list[int]]:
     """Inside the block Ctrl-C (SIGINT) raises KeyboardInterrupt as usual *and* is recorded in
     the list the block receives, so a stage is known to be interrupted even when a library
     swallowed the exception and carried on (scikit-learn's MLP ``fit`` catches it and returns
-    a half-trained model). The previous handler comes back afterwards.
+    a half-trained model). SIGTERM is recorded the same way where a handler for it is installed
+    (the command line's, which raises KeyboardInterrupt as Ctrl-C does; the handler still
+    runs). The previous handlers come back afterwards.
 
     Nothing is installed outside the main thread (Python allows handlers only there) or where
     SIGINT is ignored (pool workers: their parent stops them, :mod:`repbench.pipeline.executors`).
@@ -316,12 +318,20 @@ def interrupts_recorded() -> Iterator[list[int]]:
     if previous is signal.SIG_IGN:
         yield seen
         return
+    previous_term = signal.getsignal(signal.SIGTERM)
 
     def record(signum: int, frame: Any) -> None:
         seen.append(signum)
         raise KeyboardInterrupt
 
+    def record_term(signum: int, frame: Any) -> None:
+        seen.append(signum)
+        previous_term(signum, frame)  # type: ignore[operator]
+        raise KeyboardInterrupt
+
     signal.signal(signal.SIGINT, record)
+    if callable(previous_term):  # SIG_DFL ends the process: nothing is committed anyway
+        signal.signal(signal.SIGTERM, record_term)
     try:
         with warnings.catch_warnings():
             # the interrupt is handled here (the stage is not committed, the command line says
@@ -330,6 +340,8 @@ def interrupts_recorded() -> Iterator[list[int]]:
             yield seen
     finally:
         signal.signal(signal.SIGINT, previous)
+        if callable(previous_term):
+            signal.signal(signal.SIGTERM, previous_term)
 
 
 def _execute(spec: StageSpec, store_root: str) -> dict[str, Any]:
