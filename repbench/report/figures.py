@@ -722,11 +722,12 @@ def cross_task_predictions(res: Any, path: Path) -> Path | None:
 
 def cross_task_metrics(res: Any, path: Path, ranking: pd.DataFrame) -> Path | None:
     """Each metric's within-learned Spearman ρ with return (95 % interval as a bar), one
-    marker per task, metrics in the first task's order: which metric predicts, task by task."""
+    marker per task, metrics in the first task's order: which metric predicts, task by task
+    (on a one-task board, that task's: the answer's central figure)."""
     if ranking is None or ranking.empty or "spearman_learned" not in ranking.columns:
         return None
     tasks = [t for t in _tasks(res) if t in set(ranking["task"])]
-    if len(tasks) < 2:
+    if not tasks:
         return None
     agents = list(dict.fromkeys(ranking["agent"]))
     fig, axes = plt.subplots(1, len(agents), squeeze=False,

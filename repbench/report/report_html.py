@@ -1,4 +1,7 @@
-"""One self-contained leaderboard page: no network access, figures inlined, tables sortable.
+"""One leaderboard page: no network access, the suite's figures inlined, tables sortable, the
+answer (:mod:`repbench.report.answer`) first and the detailed tables after it, collapsed. The
+per-encoder figures (training curves, reconstructions: most of a big board's bytes) are the PNG
+files in ``figures/`` beside the page, which the page links rather than inlines.
 
 Every piece of text that comes from a user (encoder names, suite descriptions, error strings) is
 escaped with :func:`html.escape`.
@@ -10,11 +13,14 @@ import base64
 import html
 import json
 import math
+import urllib.parse
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
+
+from repbench.report.answer import CENTRAL_FIGURE, answer_section
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px auto;
@@ -36,6 +42,9 @@ tr.highlight td{background:#fff3c4;font-weight:600}
 details{margin:2px 0}summary{cursor:pointer;font-size:13px;padding:2px 0}
 .per-encoder details{display:inline-block;vertical-align:top;margin-right:14px}
 .per-encoder details[open]{display:block}
+details.section>summary{font-size:inherit}details.section>summary h2{display:inline-block;
+margin:1.2em 0 .3em}#answer{border:1px solid #cfd6e6;border-radius:6px;padding:4px 16px 12px;
+margin-top:16px}#answer h2{margin-top:.6em}
 """
 
 _JS = """
@@ -61,6 +70,12 @@ document.querySelectorAll('table.sortable').forEach(function(table){
     });
   });
 });
+function openTarget(){  // a link into a collapsed section opens it
+  var t = location.hash && document.getElementById(location.hash.slice(1));
+  for (var e = t; e; e = e.parentElement) if (e.tagName === 'DETAILS') e.open = true;
+  if (t) t.scrollIntoView();
+}
+window.addEventListener('hashchange', openTarget); openTarget();
 """
 
 
@@ -115,21 +130,44 @@ def _figure(path: Path, alt: str) -> str:
     return _img(path, alt)
 
 
+def _linked_img(path: Path, alt: str) -> str:
+    """An image of a file in the ``figures/`` folder beside the page, by its relative path
+    (inlined when it lies anywhere else)."""
+    parts = path.parts
+    if "figures" not in parts[:-1]:
+        return _img(path, alt)
+    below = parts[len(parts) - parts[::-1].index("figures"):]  # an encoder name may hold a "/"
+    src = "/".join(urllib.parse.quote(p) for p in ("figures", *below))
+    return f'<img alt="{html.escape(alt)}" src="{html.escape(src)}">'
+
+
 def _figures_section(figures: dict[str, Path]) -> list[str]:
-    """The suite's figures open, then each kind of per-encoder figure (training curves,
-    reconstructions) as one closed ``<details>`` per encoder, so the page stays short."""
+    """The suite's figures open (but the answer's central one, shown above), then each kind of
+    per-encoder figure (training curves, reconstructions) as one closed ``<details>`` per
+    encoder, linked from ``figures/``, so the page stays short and small."""
     from repbench.report.figures import per_encoder_figures
 
     shared, groups = per_encoder_figures(figures)
     out = [f"<div class='fig'><h3>{html.escape(name)}</h3>{_figure(path, name)}</div>"
-           for name, path in shared.items()]
+           for name, path in shared.items() if name != CENTRAL_FIGURE]
     for heading, items in groups.items():
         out.append(f"<div class='fig per-encoder'><h3>{html.escape(heading)}</h3>"
-                   f"<p class='sub'>One per encoder; click a name to open it.</p>")
+                   f"<p class='sub'>One per encoder; click a name to open it (the PNG files "
+                   f"in <code>figures/</code> beside this page).</p>")
         out.extend(f"<details><summary>{html.escape(enc)}</summary>"
-                   f"{_img(path, f'{heading}: {enc}')}</details>" for enc, path in items)
+                   f"{_linked_img(path, f'{heading}: {enc}')}</details>" for enc, path in items)
         out.append("</div>")
     return out
+
+
+def _collapsed(parts: list[str], section_id: str) -> list[str]:
+    """A section (its first part opening with its ``<h2>``) as a closed ``<details>`` whose
+    summary is that heading."""
+    if not parts:
+        return []
+    head, _, rest = parts[0].partition("</h2>")
+    return [f"<details class='section' id='{section_id}'><summary>{head}</h2></summary>{rest}",
+            *parts[1:], "</details>"]
 
 
 def _privileged_section(prov: dict[str, Any]) -> list[str]:
@@ -339,12 +377,16 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
     if len({*metrics_df.get("task", pd.Series(dtype=object))}) > 1:
         rank_cols.insert(0, "task")
     ranking = metrics_df[[c for c in rank_cols if c in metrics_df.columns]]
+    checks = (getattr(res, "robustness", None) or {}).get("checks")
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
         f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         f"<p class='sub'>{html.escape(prov.get('description') or '')}</p>",
         *_partial_banner(res),
+        *answer_section(claims, checks, encoders_df, figures),
+        "<p class='sub'>The detailed tables: click a heading to open it.</p>",
+        *_collapsed([
         "<h2>Metric leaderboard</h2>",
         "<p class='note'>Metrics ranked by their Spearman ρ with RL return <b>within the learned "
         "encoders</b> (baselines such as the oracle and the untrained encoder excluded: they "
@@ -358,16 +400,18 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "latents, the estimate and its bootstrap), which a paused or crowded run does not "
         "inflate.</p>",
         _table(ranking, "ranking") if "spearman_learned" in metrics_df.columns
-        else "<p>No correlations yet.</p>",
-        *_claims_section(claims),
-        *_robustness_section((getattr(res, "robustness", None) or {}).get("checks")),
-        *_cross_task_section(encoders_df),
+        else "<p>No correlations yet.</p>"], "ranking-section"),
+        *_collapsed(_claims_section(claims), "claims-section"),
+        *_collapsed(_robustness_section(checks), "robustness-section"),
+        *_collapsed(_cross_task_section(encoders_df), "across-tasks-section"),
+        *_collapsed([
         "<h2>Which metric predicts RL performance?</h2>",
         "<p class='note'>Correlation across encoders between each metric and the final "
         "evaluation return (mean over seeds). Metrics where lower is better are sign-flipped, so "
         "a positive coefficient always means the metric ranks encoders as RL does. Brackets: "
         "bootstrap 95% interval over encoders and seeds. Click a header to sort.</p>",
-        _table(met, "metrics"),
+        _table(met, "metrics")], "metrics-section"),
+        *_collapsed([
         "<h2>Which encoder is best?</h2>",
         "<p class='note'>One row per task × encoder: every metric with its confidence interval, "
         "and per agent the evaluation return over seeds — mean and interquartile mean (IQM), "
@@ -376,8 +420,9 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         "encoder's training in wall seconds, fit_cpu_s the CPU seconds of its stage: compare "
         "costs on the second, which a paused or crowded run does not inflate.</p>",
         *_encoder_notes(res),
-        _table(encoders_df, "encoders", row_class=_encoder_row_class(res)),
-        *_privileged_section(prov),
+        _table(encoders_df, "encoders", row_class=_encoder_row_class(res))],
+        "encoders-section"),
+        *_collapsed(_privileged_section(prov), "privileged-section"),
         "<h2>Figures</h2>",
     ]
     parts.extend(_figures_section(figures))

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import math
+import re
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
@@ -46,7 +48,9 @@ def test_leaderboard_in_headless_chromium(smoke_run: SuiteRun) -> None:
     assert page_path.is_file(), smoke_run.stdout[-2000:]
     with _page(sync_api, page_path, width=1280) as (browser, page):
         images = page.eval_on_selector_all("img", "els => els.map(e => e.naturalWidth)")
-        assert len(images) >= 4 and all(w > 100 for w in images)
+        assert len(images) >= 4 and all(w > 100 for w in images)  # linked figures load too
+        page.click("#encoders-section > summary")  # the detailed tables open on a click
+        page.click("#metrics-section > summary")
 
         def column(table: str, header: str) -> list[str]:
             idx = page.eval_on_selector_all(
@@ -81,6 +85,15 @@ def test_leaderboard_reads_in_a_minute(smoke_run: SuiteRun) -> None:
         details = page.eval_on_selector_all("details", "els => els.map(e => e.open)")
         assert len(details) >= 3 and not any(details)  # per-encoder figures + provenance
         assert page.eval_on_selector_all(".per-encoder details img", "els => els.length") >= 2
+        # the answer comes first: above the fold, before any detailed table
+        top = page.eval_on_selector("#answer", "e => e.getBoundingClientRect().top")
+        assert top < 400, top
+        assert page.evaluate("""() => {
+            const answer = document.getElementById('answer');
+            return Array.from(document.querySelectorAll('table'))
+                .every(t => answer.contains(t) || t.closest('details'));
+        }""")
+        _answer_matches_claims(page, smoke_run.out / "claims.csv")
         titles = page.eval_on_selector_all(
             "svg g[id^='mvr-'] > title", "els => els.map(e => e.textContent)")
         encoders = page.eval_on_selector_all(
@@ -93,3 +106,24 @@ def test_leaderboard_reads_in_a_minute(smoke_run: SuiteRun) -> None:
         assert page.eval_on_selector(".per-encoder details", "e => e.open")
         assert page.evaluate("document.documentElement.scrollHeight") > height
         browser.close()
+
+
+def _answer_matches_claims(page: Any, claims_csv: Path) -> None:
+    """Each row of the answer panel shows the best-metric claim of claims.csv for its task ×
+    agent: the metric, ρ and interval as the page formats them, and the verdict."""
+    import pandas as pd
+
+    claims = pd.read_csv(claims_csv)
+    best = claims[claims["claim"] == "Which metric predicts return best (learned encoders)?"]
+    rows = page.eval_on_selector_all("#answer-metrics tbody tr", """rows => rows.map(r => ({
+        task: r.dataset.task, agent: r.dataset.agent, metric: r.cells[2].textContent.trim(),
+        rho: r.cells[3].textContent.trim(), verdict: r.cells[4].textContent.trim()}))""")
+    assert len(rows) == len(best) > 0
+    for row, want in zip(rows, best.to_dict("records"), strict=True):
+        assert (row["task"], row["agent"]) == (want["task"], want["agent"])
+        assert row["metric"] == want["statistic"].rsplit(": ", 1)[-1]
+        shown = [float(x) for x in re.findall(r"-?\d+(?:\.\d+)?(?:e-?\d+)?", row["rho"])]
+        wanted = [want["value"], want["ci_low"], want["ci_high"]]  # the page shows 4 digits
+        assert len(shown) == 3 and all(math.isclose(a, b, rel_tol=1e-3, abs_tol=1e-3)
+                                       for a, b in zip(shown, wanted, strict=True)), row
+        assert row["verdict"] == want["verdict"], row

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import urllib.parse
 from pathlib import Path
 
 from repbench.pipeline.suite import load_suite
@@ -174,13 +175,19 @@ def test_per_encoder_figures_are_closed_by_default(tmp_path: Path) -> None:
             plt.close(fig)
             res.figures_from_store[f"{kind} {enc}"] = png
     html = (write_leaderboards(res, tmp_path / "out") / "index.html").read_text()
-    blocks = re.findall(r"<details[^>]*>(.*?)</details>", html, re.S)
-    per_encoder = [b for b in blocks if "data:image/png;base64," in b]
+    blocks = re.findall(r"<details>(.*?)</details>", html, re.S)
+    per_encoder = [b for b in blocks if "<img " in b]
     assert len(per_encoder) == 4
     assert all(b.startswith("<summary>") and b.count("<img ") == 1 for b in per_encoder)
     assert "<summary>&lt;script&gt;alert(&#x27;x&#x27;)&lt;/script&gt;</summary>" in html
     assert not re.search(r"<details[^>]*\bopen\b", html)
-    assert html.count("data:image/png;base64,") > 4  # the suite's figures stay open, outside
+    # linked, not inlined (they are most of a big board's bytes): each src is a file beside
+    # the page, an encoder name with a "/" included
+    for block in per_encoder:
+        assert "data:image" not in block
+        src = re.search(r'src="(figures/[^"]+)"', block).group(1)
+        assert (tmp_path / "out" / urllib.parse.unquote(src.replace("&amp;", "&"))).is_file()
+    assert html.count("data:image/png;base64,") >= 2  # the suite's figures stay inlined, open
     assert (tmp_path / "out" / "figures" / "reconstructions_pca.png").is_file()
 
 
@@ -254,3 +261,23 @@ def test_a_one_task_figure_is_not_taken_for_another_tasks_encoder(tmp_path: Path
     own.write_bytes(b"\x89PNG surface press's curves")
     assert _encoder_figure({"_path": str(press)}, "loss_curves", "vae SurfacePress-v0", "vae",
                            "loss_curves.png") == own
+
+
+def test_the_shipped_quick_page_is_small_and_answers_first() -> None:
+    """quick's page: at most 3 MB, its answer before any other table, the answer's best metric
+    per task × agent that of claims.csv, and every figure it links shipped beside it."""
+    import pandas as pd
+
+    board = Path(__file__).parents[2] / "leaderboards" / "quick"
+    page = (board / "index.html").read_text(encoding="utf-8")
+    assert (board / "index.html").stat().st_size <= 3_000_000
+    start, end = page.index("<section id='answer'>"), page.index("</section>")
+    assert page.index("<table") > start and "<table id='ranking'" not in page[:end]
+    claims = pd.read_csv(board / "claims.csv")
+    best = claims[claims["claim"] == "Which metric predicts return best (learned encoders)?"]
+    shown = re.findall(r"<tr data-task='([^']+)' data-agent='([^']+)' data-metric='([^']+)'>",
+                       page[start:end])
+    assert shown == [(r.task, r.agent, r.statistic.rsplit(": ", 1)[-1])
+                     for r in best.itertuples()]
+    linked = re.findall(r'<img [^>]*src="(figures/[^"]+)"', page)
+    assert len(linked) >= 60 and all((board / src).is_file() for src in linked)
