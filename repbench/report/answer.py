@@ -15,6 +15,10 @@ from typing import Any
 
 import pandas as pd
 
+from repbench.report.html_parts import VERDICT_COLORS as _VERDICT_COLORS
+from repbench.report.html_parts import figure as _figure
+from repbench.report.html_parts import fmt as _fmt
+
 #: The central figure, shown in the panel (and not again among the figures).
 CENTRAL_FIGURE = "Which metric predicts return, task by task"
 BEST_LEARNED = "Which metric predicts return best (learned encoders)?"
@@ -151,8 +155,6 @@ def _return_matrix(encoders_df: pd.DataFrame, fmt: Any) -> list[str]:
 def answer_section(claims: pd.DataFrame | None, checks: pd.DataFrame | None,
                    encoders_df: pd.DataFrame, figures: dict[str, Path]) -> list[str]:
     """The page's first section, ``<section id="answer">``; empty before any correlation."""
-    from repbench.report.report_html import _VERDICT_COLORS, _figure, _fmt
-
     rows = [] if claims is None or claims.empty else _metric_rows(claims, _fmt,
                                                                     _VERDICT_COLORS)
     if not rows:

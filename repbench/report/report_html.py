@@ -9,7 +9,6 @@ escaped with :func:`html.escape`.
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 import math
@@ -21,6 +20,10 @@ from typing import Any
 import pandas as pd
 
 from repbench.report.answer import CENTRAL_FIGURE, answer_section
+from repbench.report.html_parts import VERDICT_COLORS as _VERDICT_COLORS
+from repbench.report.html_parts import figure as _figure
+from repbench.report.html_parts import fmt as _fmt
+from repbench.report.html_parts import img as _img
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px auto;
@@ -79,14 +82,6 @@ window.addEventListener('hashchange', openTarget); openTarget();
 """
 
 
-def _fmt(v: Any) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "–"
-    if isinstance(v, float):
-        return f"{v:.4g}"
-    return str(v)
-
-
 def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True,
            row_class: Any = None) -> str:
     """HTML table; ``x_ci_low``/``x_ci_high`` columns fold into the cell of ``x``;
@@ -115,19 +110,6 @@ def _table(df: pd.DataFrame, table_id: str, ci_cols: bool = True,
         body.append(f"<tr{cls_attr}>" + "".join(cells) + "</tr>")
     return (f'<table class="sortable" id="{table_id}"><thead><tr>{head}</tr></thead>'
             f"<tbody>{''.join(body)}</tbody></table>")
-
-
-def _img(path: Path, alt: str) -> str:
-    data = base64.b64encode(path.read_bytes()).decode()
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
-
-
-def _figure(path: Path, alt: str) -> str:
-    """A figure for the page: SVG inline (its hover titles work), anything else as an image."""
-    if path.suffix == ".svg":
-        return f"<div class='svgfig' role='img' aria-label='{html.escape(alt)}'>" + (
-            path.read_text(encoding="utf-8")) + "</div>"
-    return _img(path, alt)
 
 
 def _linked_img(path: Path, alt: str) -> str:
@@ -234,10 +216,6 @@ def _encoder_notes(res: Any) -> list[str]:
     return notes
 
 
-_VERDICT_COLORS = {"reproduced": "#dff5e1", "not reproduced": "#fbe0e0",
-                   "inconclusive": "#f3f0dc", "significant": "#dff5e1",
-                   "not significant": "#f3f0dc", "holds": "#dff5e1",
-                   "does not hold": "#fbe0e0", "holds, too wide": "#f3f0dc"}
 _WIDE = "class='txt' style='white-space:normal;min-width:{}px'"
 _TXT = "class='txt'"
 

@@ -1,0 +1,40 @@
+"""Small HTML pieces the leaderboard page and its answer section share: number formatting,
+figures (SVG inline, PNG as a data URI) and the verdict colours. A leaf module, so that
+:mod:`repbench.report.report_html` and :mod:`repbench.report.answer` both import it without
+importing each other."""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from pathlib import Path
+from typing import Any
+
+VERDICT_COLORS = {"reproduced": "#dff5e1", "not reproduced": "#fbe0e0",
+                  "inconclusive": "#f3f0dc", "significant": "#dff5e1",
+                  "not significant": "#f3f0dc", "holds": "#dff5e1",
+                  "does not hold": "#fbe0e0", "holds, too wide": "#f3f0dc"}
+
+
+def fmt(v: Any) -> str:
+    """A value as a table shows it: 4 significant digits, '–' for missing or non-finite."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def img(path: Path, alt: str) -> str:
+    """A PNG file as an inlined ``<img>`` (data URI)."""
+    data = base64.b64encode(path.read_bytes()).decode()
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def figure(path: Path, alt: str) -> str:
+    """A figure for the page: SVG inline (its hover titles work), anything else as an image."""
+    if path.suffix == ".svg":
+        return f"<div class='svgfig' role='img' aria-label='{html.escape(alt)}'>" + (
+            path.read_text(encoding="utf-8")) + "</div>"
+    return img(path, alt)
