@@ -128,6 +128,10 @@ def leaderboard(
         "--predictions", help="Folder of pre-registered cross-task predictions "
         "(<task id>.csv, e.g. leaderboards/quick/predictions): scores them in "
         "robustness.csv.")] = None,
+    copy_records: Annotated[bool, typer.Option(
+        "--copy-records/--no-copy-records", help="Copy the --records into OUT/records (the "
+        "default), or leave them where they are and name their folders in provenance.json: for "
+        "a board built from another board's records, e.g. one task of quick.")] = True,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.pipeline.runner import rebuild_leaderboards
@@ -136,7 +140,8 @@ def leaderboard(
         if not folder.is_dir():
             raise RepbenchError(f"records folder {folder} does not exist")
     out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records or None,
-                                   longer=longer, agent_run=agent_run, predictions=predictions)
+                                   longer=longer, agent_run=agent_run, predictions=predictions,
+                                   copy_records=copy_records)
     typer.echo(f"leaderboards written to {out_dir}")
 
 

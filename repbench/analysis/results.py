@@ -309,14 +309,20 @@ def _encoder_figure(record: Mapping[str, Any], stem: str, label: str, encoder: s
     rebuild from records keeps the training curves and reconstructions it cannot redraw):
     named by ``label`` (``"<encoder> <task>"`` on a board of several tasks), or by the encoder
     alone when the records folder holds one task's encoders (a figure so named belongs to the one
-    task such a board had, so a folder of several tasks never falls back to it)."""
+    task such a board had, so a folder of several tasks never falls back to it). A board of one
+    task built from a folder of several finds the figure under its ``<encoder>_<task>`` name."""
     if not record.get("_path"):
         return None
     here = Path(record["_path"]).parent
     figures = here.parent.parent / "figures"
-    candidates = [here / png, figures / f"{stem}_{label.replace(' ', '_')}.png"]
+    task = (record.get("task") or {}).get("name")
+    one_task_name = figures / f"{stem}_{encoder}.png"
+    candidates = [here / png, figures / f"{stem}_{encoder}_{task}.png",
+                  figures / f"{stem}_{label.replace(' ', '_')}.png"]
     if len({p.name.split(".", 1)[0] for p in here.glob("*.json")}) <= 1:  # <task>.<encoder>-...
-        candidates.append(figures / f"{stem}_{encoder}.png")
+        candidates.append(one_task_name)
+    else:  # a label of the encoder alone is the one-task name, another task's figure here
+        candidates = [path for path in candidates if path != one_task_name]
     return next((path for path in candidates if path.is_file()), None)
 
 

@@ -152,7 +152,9 @@ def records_of_suite(records: list[dict], suite: Suite, folder: str | Path,
     Raises ConfigError (one line, naming the suite they belong to and the one asked for) when
     they are the records of another suite: another built-in suite (or the one their
     leaderboard's ``provenance.json`` names) has more of them among its stages, or ``suite``
-    has none. Records that are not stages of ``suite`` are otherwise left out with a warning.
+    has none; unless they hold every stage of ``suite`` (one task of quick, say, rebuilt from
+    quick's records). Records that are not stages of ``suite`` are otherwise left out with a
+    warning.
     """
     wanted = plan_identities(suite)
     ours = [r for r in records if r.get("identity") in wanted]
@@ -162,7 +164,9 @@ def records_of_suite(records: list[dict], suite: Suite, folder: str | Path,
     owner, n_owner = _owner_suite(records, exclude=suite.name)
     if owner is None:
         owner, n_owner = _provenance_suite(Path(folder)), 0
-    if owner is not None and owner != suite.name and (n_owner > len(ours) or not ours):
+    every_stage = wanted <= {r.get("identity") for r in ours}
+    if owner is not None and owner != suite.name and (n_owner > len(ours) or not ours) \
+            and not every_stage:
         count = f" ({n_owner} of their {len(records)} stages)" if n_owner else ""
         raise ConfigError(
             f"the records in {where} belong to suite {owner!r}{count}, not to suite "
@@ -240,11 +244,12 @@ def _companion_results(folder: str | Path, option: str, example: str, what: str)
     ConfigError (one line) when it is missing or holds no RL records."""
     folder = Path(folder)
     where = folder / "records" if (folder / "records").is_dir() else folder
-    if not where.is_dir():
+    if not folder.is_dir():
         raise ConfigError(f"{option} {folder}: no such folder; pass the leaderboard folder of "
                           f"{what} (e.g. {example})")
     problems: list[str] = []
-    records = load_records(where, problems=problems)
+    records = [r for f in board_records_folders(folder)
+               for r in load_records(f, problems=problems)]
     res = build_results(select(records, installed=installed_versions(records)))
     res.warnings.extend(problems)
     res.provenance["suite"] = _provenance_suite(where)
@@ -252,6 +257,20 @@ def _companion_results(folder: str | Path, option: str, example: str, what: str)
         raise ConfigError(f"{option} {folder}: no RL records there; pass the leaderboard folder "
                           f"of {what} (e.g. {example})")
     return res
+
+
+def board_records_folders(folder: str | Path) -> list[Path]:
+    """The folders holding the records of the leaderboard ``folder``: its ``records/`` and the
+    folders its ``provenance.json`` names (a board written with ``copy_records=False``), or
+    ``folder`` itself when it is a records folder."""
+    folder = Path(folder)
+    found = [folder / "records"] if (folder / "records").is_dir() else []
+    try:
+        named = json.loads((folder / "provenance.json").read_text()).get("records_folders", [])
+    except (OSError, ValueError):
+        named = []
+    found += [(folder / f).resolve() for f in named if (folder / f).is_dir()]
+    return found or [folder]
 
 
 def _companion_provenance(folder: str | Path, res: Results) -> dict[str, Any]:
@@ -318,7 +337,8 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          records: str | Path | Sequence[str | Path] | None = None,
                          longer: str | Path | None = None,
                          agent_run: str | Path | None = None,
-                         predictions: str | Path | None = None) -> Path:
+                         predictions: str | Path | None = None,
+                         copy_records: bool = True) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
     With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``, or
@@ -329,9 +349,15 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     ``leaderboards/quick/ddpg``) the agent-agreement rows (:func:`agent_run_results`); with
     ``predictions`` (a folder of pre-registered ``<task id>.csv``, e.g.
     ``leaderboards/quick/predictions``) the cross-task prediction rows
-    (:func:`load_predictions`).
+    (:func:`load_predictions`). ``copy_records=False`` (only with ``records``) leaves the records
+    in their folders, which ``provenance.json`` names, instead of copying them into
+    ``<out>/records``: a board built from another board's records (one task of quick, say) then
+    does not store them twice.
     """
     s = load_suite(suite)
+    if not copy_records and records is None:
+        raise ConfigError("not copying the records needs --records: a board built from the store "
+                          "has no record files elsewhere to point to; drop --no-copy-records")
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
     if records is not None:
         folders = [records] if isinstance(records, str | Path) else list(records)
@@ -340,6 +366,9 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
         found = [r for f in folders
                  for r in records_of_suite(load_records(f, problems=problems), s, f)]
         results = results_of(build_plan(s), found, problems)
+        if not copy_records:
+            results.provenance["records_folders"] = [
+                os.path.relpath(Path(f).resolve(), out_dir.resolve()) for f in folders]
     else:
         st = Store(store)
         results = collect_results(build_plan(s), st)
@@ -356,7 +385,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
         results.provenance["agent_run"] = _companion_provenance(agent_run, other)
     preds = load_predictions(predictions, results) if predictions is not None else []
     return write_leaderboards(results, out_dir, longer=extra, agent_run=other,
-                              predictions=preds)
+                              predictions=preds, copy_records=copy_records)
 
 
 def load_predictions(folder: str | Path, results: Results) -> list[pd.DataFrame]:
@@ -379,7 +408,7 @@ def load_predictions(folder: str | Path, results: Results) -> list[pd.DataFrame]
         if lacking or table.empty:
             raise ConfigError(f"--predictions: {f} is not a prediction table (missing "
                               f"{', '.join(lacking) or 'rows'}); make it with "
-                              "leaderboards/quick/predictions/predict.py")
+                              "studies/predictions/predict.py")
         if table["task"].iloc[0] in tasks:
             out.append(table)
     return out

@@ -214,10 +214,12 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
 
 def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = None,
                        agent_run: Results | None = None,
-                       predictions: Sequence[pd.DataFrame] = ()) -> Path:
+                       predictions: Sequence[pd.DataFrame] = (),
+                       copy_records: bool = True) -> Path:
     """Write ``encoders.csv``, ``metrics.csv``, ``claims.csv``, ``robustness.csv``,
     ``provenance.json``, figures,
-    ``index.html`` and the records they were computed from (``records/``).
+    ``index.html`` and the records they were computed from (``records/``; with
+    ``copy_records=False`` they stay where they are and ``provenance.json`` names their folders).
 
     ``longer`` (the same task × agent at a longer budget) adds the budget rows to
     ``robustness.csv``, ``agent_run`` (another agent at this budget) the agent-agreement rows;
@@ -240,7 +242,8 @@ def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = Non
     met.to_csv(out_dir / "metrics.csv", index=False, float_format="%.6g")
     claims.to_csv(out_dir / "claims.csv", index=False, float_format="%.6g")
     robustness.to_csv(out_dir / "robustness.csv", index=False, float_format="%.6g")
-    write_records(res.records, out_dir / "records")
+    if copy_records:
+        write_records(res.records, out_dir / "records")
     with open(out_dir / "provenance.json", "w") as f:
         json.dump(res.provenance, f, indent=1, default=str)
     kept = {p.resolve() for p in res.figures_from_store.values()}  # a rebuild's own copies

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 from pathlib import Path
 
@@ -15,7 +16,12 @@ from repbench.analysis.results import load_records
 from repbench.errors import ConfigError
 from repbench.pipeline.evaluate import reference_dirs
 from repbench.pipeline.records import CHECKSUM, SCHEMA_VERSION, inspect_record, record_checksum
-from repbench.pipeline.runner import rebuild_leaderboards, records_of_suite, run_suite
+from repbench.pipeline.runner import (
+    board_records_folders,
+    rebuild_leaderboards,
+    records_of_suite,
+    run_suite,
+)
 from repbench.pipeline.suite import load_suite
 
 from .tiny_toy_suite import tiny_toy_suite
@@ -192,6 +198,24 @@ def test_records_of_another_suite_are_refused(finished: tuple[Path, Path, Path],
     assert not (tmp_path / "out").exists()
 
 
+def test_a_suite_whose_every_stage_is_in_a_bigger_suites_records_is_built_from_them(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """quick holds every stage of its one-task suites: quick's records are enough to rebuild
+    the Door-v0 board, so that task's records need not be stored twice."""
+    quick = ROOT / "leaderboards" / "quick" / "records"
+    records = load_records(quick)
+    door = load_suite(ROOT / "leaderboards" / "quick" / "door" / "suite_20k.toml")
+    with caplog.at_level(logging.WARNING):
+        ours = records_of_suite(records, door, quick)
+    assert {r["task"]["name"] for r in ours} == {"Door-v0"}
+    assert len(ours) == len(records) - sum(r["task"]["name"] != "Door-v0" for r in records) > 300
+    assert f"{len(records) - len(ours)} of the {len(records)} records" in caplog.text
+    more_seeds = door.model_copy(update={"name": "quick_door_more",
+                                    "seeds": [*door.seeds, max(door.seeds) + 1]})
+    with pytest.raises(ConfigError, match=r"belong to suite 'quick'"):  # a stage is missing
+        records_of_suite(records, more_seeds, quick)
+
+
 def test_records_beyond_the_suite_are_left_out_by_count(finished: tuple[Path, Path, Path],
                                                         tmp_path: Path,
                                                         caplog: pytest.LogCaptureFixture) -> None:
@@ -204,3 +228,23 @@ def test_records_beyond_the_suite_are_left_out_by_count(finished: tuple[Path, Pa
            "'toyfewer': left out" in caplog.text
     enc = pd.read_csv(tmp_path / "out" / "encoders.csv")
     assert list(enc["encoder"]) == ["oracle"]
+
+
+def test_a_board_can_leave_its_records_where_they_are(finished: tuple[Path, Path, Path],
+                                                      tmp_path: Path) -> None:
+    """--no-copy-records: the board is the same, nothing is copied into <out>/records, and
+    provenance.json names the folder, which is where a later reader (--agent-run, --longer)
+    finds the records."""
+    suite, store, lb = finished
+    out = rebuild_leaderboards(suite, records=lb / "records", out=tmp_path / "board",
+                               copy_records=False)
+    assert not (out / "records").exists()
+    for table in ("encoders.csv", "metrics.csv", "claims.csv"):
+        assert (out / table).read_text() == (lb / table).read_text()
+    provenance = json.loads((out / "provenance.json").read_text())
+    assert provenance["records_folders"] == [os.path.relpath(lb / "records", out)]
+    assert board_records_folders(out) == [(lb / "records").resolve()]
+    assert board_records_folders(lb) == [lb / "records"]
+    with pytest.raises(ConfigError, match=r"needs --records"):
+        rebuild_leaderboards(suite, store=store, out=tmp_path / "b2", copy_records=False)
+    assert not (tmp_path / "b2").exists()

@@ -222,8 +222,8 @@ def test_a_rebuild_leaves_no_figure_the_page_does_not_show(tmp_path: Path) -> No
     old = out / "figures" / "loss_curves_vae.png"
     elsewhere = tmp_path / "store" / "loss_curves.png"
     elsewhere.parent.mkdir()
-    png = (Path(__file__).parents[2] / "leaderboards" / "quick" / "surface_press" / "figures"
-           / "loss_curves_vae.png").read_bytes()  # any real figure
+    png = (Path(__file__).parents[2] / "leaderboards" / "quick" / "figures"
+           / "loss_curves_vae_PegInHole-v0.png").read_bytes()  # any real figure
     old.write_bytes(png)
     elsewhere.write_bytes(png)
     res = _results()
@@ -261,6 +261,9 @@ def test_a_one_task_figure_is_not_taken_for_another_tasks_encoder(tmp_path: Path
     own.write_bytes(b"\x89PNG surface press's curves")
     assert _encoder_figure({"_path": str(press)}, "loss_curves", "vae SurfacePress-v0", "vae",
                            "loss_curves.png") == own
+    # a board of that one task, rebuilt from this folder of several, labels it "vae" alone
+    assert _encoder_figure({"_path": str(press), "task": {"name": "SurfacePress-v0"}},
+                           "loss_curves", "vae", "vae", "loss_curves.png") == own
 
 
 def test_the_shipped_quick_page_is_small_and_answers_first() -> None:
