@@ -40,8 +40,8 @@ from repbench.errors import ConfigError, DataError
 from repbench_encoders.networks import MultimodalVAENet, NetworkSpec
 from repbench_encoders.trunk import TrunkEncoder, make_variant
 
-__all__ = ["AugmentContrastive", "ContrastiveEncoder", "TimeContrastive", "info_nce",
-           "random_shift"]
+__all__ = ["AugmentContrastive", "ContrastiveEncoder", "TimeContrastive", "augmented_inputs",
+           "info_nce", "random_shift"]
 
 OBJECTIVES = ("time", "augment")
 
@@ -75,6 +75,27 @@ def random_shift(image: torch.Tensor, pad: int, gen: torch.Generator) -> torch.T
     batch = torch.arange(b, device=dev)[:, None, None]
     out = padded.permute(0, 2, 3, 1)[batch, rows[:, :, None], cols[:, None, :]]  # [B, H, W, C]
     return out.permute(0, 3, 1, 2).contiguous(memory_format=torch.channels_last)
+
+
+def augmented_inputs(encoder: TrunkEncoder, data: dict[str, torch.Tensor], rows: torch.Tensor,
+                     gen: torch.Generator, shift: int, input_noise: float
+                     ) -> tuple[torch.Tensor | None, torch.Tensor | None, torch.Tensor | None]:
+    """One augmented view of dataset ``rows`` as the trunk's ``(image, ft, proprio)`` inputs
+    (None for a modality ``encoder`` does not read): the image randomly shifted by up to
+    ``shift`` pixels (:func:`random_shift`), standardized force and proprioception with
+    Gaussian noise of ``input_noise`` standard deviations."""
+    reads = encoder.spec_["modalities"]
+    image = ft = proprio = None
+    if IMAGE in reads:
+        image = random_shift(encoder._image_input(data["image"][rows]), shift, gen)
+    if FT in reads:
+        ft = data["ft"][rows]
+        ft = ft + input_noise * torch.randn(ft.shape, generator=gen, device=ft.device)
+    if PROPRIO in reads:
+        proprio = data["proprio"][rows]
+        proprio = proprio + input_noise * torch.randn(proprio.shape, generator=gen,
+                                                      device=proprio.device)
+    return image, ft, proprio
 
 
 class ContrastiveEncoder(TrunkEncoder):
@@ -169,18 +190,8 @@ class ContrastiveEncoder(TrunkEncoder):
     def _view(self, data: dict[str, torch.Tensor], rows: torch.Tensor, gen: torch.Generator
               ) -> torch.Tensor:
         """μ_z of one augmented view of ``rows``."""
-        reads = self.spec_["modalities"]
-        image = ft = proprio = None
-        if IMAGE in reads:
-            image = random_shift(self._image_input(data["image"][rows]), int(self.shift), gen)
-        if FT in reads:
-            ft = data["ft"][rows]
-            ft = ft + self.input_noise * torch.randn(ft.shape, generator=gen, device=ft.device)
-        if PROPRIO in reads:
-            proprio = data["proprio"][rows]
-            proprio = proprio + self.input_noise * torch.randn(proprio.shape, generator=gen,
-                                                               device=proprio.device)
-        mu, _ = self.net_.encode(image, ft, proprio)
+        mu, _ = self.net_.encode(*augmented_inputs(self, data, rows, gen, int(self.shift),
+                                                   float(self.input_noise)))
         return mu
 
     def _loss_terms(self, data: dict[str, torch.Tensor], idx: torch.Tensor,

@@ -98,6 +98,9 @@ class TrunkEncoder(Encoder):
     def _prepare(self, dataset: Dataset) -> None:
         """Learn what the network's shape depends on (called before :meth:`_build_net`)."""
 
+    def _after_step(self) -> None:
+        """Called after every optimizer step (e.g. a momentum target network's update)."""
+
     def _pairs(self, dataset: Dataset) -> tuple[np.ndarray, np.ndarray | None]:
         """Training rows and, for :attr:`temporal` objectives, each row's partner."""
         if not self.temporal:
@@ -231,6 +234,7 @@ class TrunkEncoder(Encoder):
                 opt.zero_grad(set_to_none=True)
                 loss.backward()
                 opt.step()
+                self._after_step()
                 for k in keys:
                     sums[k] += float(terms[k].detach()) * b.size
             if not all(torch.isfinite(p).all() for p in net.parameters()):

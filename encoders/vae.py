@@ -42,6 +42,7 @@ __all__ = [  # noqa: RUF022 (grouped: the base, the paper's ten, the ablations)
     "VAE", "VAELowKL", "SuccessVAE", "SuccessVAELowKL", "PredZVAE", "PredZVAELowKL",
     "PredImVAE", "PredImVAELowKL", "SmoothVAE", "SmoothVAELowKL",
     "VAELowKLD4", "VAELowKLD64", "ImageOnlyVAELowKL", "FtProprioVAELowKL",
+    "VAELowKLBalanced",
 ]
 
 LOSS_TERMS = ("recon", "kl", "success", "pred_z", "pred_im", "smooth")
@@ -73,7 +74,11 @@ class MultimodalVAE(TrunkEncoder):
         smooth_weight: weight of ‖μ_{n+1} − μ_n‖ (paper: 500; 0.1 with low KL).
         ft_recon_scale: standardized force errors are multiplied by this before squaring, so
             one standard deviation of force counts like a full-scale pixel (255); the paper does
-            not give the force/image balance.
+            not give the force/image balance. ``"balanced"``: chosen at fit time so that the
+            two modalities weigh the same when each is off by one of its standard deviations
+            per element: 255 · σ_image · √(pixels·3 / force axes), σ_image the images' mean
+            per-channel standard deviation (in [0, 1] units); with 64 × 64 images ≈ 45 × that
+            of a pixel per axis times σ_image (:meth:`MultimodalVAE.balanced_ft_scale`).
         patience: stop after this many epochs without a held-out improvement and keep the best
             epoch's weights (0: train all ``epochs``).
         validation_fraction: share of whole episodes held out for the held-out loss curve and
@@ -92,7 +97,7 @@ class MultimodalVAE(TrunkEncoder):
                  learning_rate: float = 1e-3, kl_weight: float = 10.0, recon_weight: float = 1e-4,
                  success_weight: float = 0.0, pred_z_weight: float = 0.0,
                  pred_im_weight: float = 0.0, smooth_weight: float = 0.0,
-                 ft_recon_scale: float = 255.0, patience: int = 0,
+                 ft_recon_scale: float | str = 255.0, patience: int = 0,
                  validation_fraction: float = 0.0, tol: float = 1e-3, seed: int = 0,
                  device: str = "auto", progress: bool = True) -> None:
         self.latent_dim = latent_dim
@@ -125,8 +130,29 @@ class MultimodalVAE(TrunkEncoder):
         for w in ("kl_weight", "recon_weight", "success_weight", "pred_z_weight",
                   "pred_im_weight", "smooth_weight", "ft_recon_scale"):
             v = getattr(self, w)
+            if w == "ft_recon_scale" and v == "balanced":
+                continue
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{name}: {w} must be a finite number >= 0, got {v!r}")
+                hint = ' or "balanced"' if w == "ft_recon_scale" else ""
+                raise ConfigError(f"{name}: {w} must be a finite number >= 0{hint}, got {v!r}")
+
+    def _prepare(self, dataset: Dataset) -> None:
+        if self.ft_recon_scale == "balanced":
+            self.ft_scale_ = self.balanced_ft_scale(self.stats_, self.spec_)
+
+    def _ft_scale(self) -> float:
+        """The force reconstruction scale in use (a number, or the one fixed at fit time)."""
+        if self.ft_recon_scale == "balanced":
+            return float(self.ft_scale_)
+        return float(self.ft_recon_scale)
+
+    @staticmethod
+    def balanced_ft_scale(stats: Mapping[str, np.ndarray], spec: Mapping[str, Any]) -> float:
+        """The force scale at which one standard deviation of error per element weighs the
+        same in the image term (summed over its pixels) as in the force term (over its axes)."""
+        pixels = int(spec["image_size"]) ** 2 * 3
+        image_std = float(np.mean(stats["image_std"]))
+        return 255.0 * image_std * math.sqrt(pixels / int(spec["ft_dim"]))
 
     def _spec_options(self) -> dict[str, Any]:
         return {"success_head": self.success_weight > 0, "pred_z_head": self.pred_z_weight > 0,
@@ -160,7 +186,7 @@ class MultimodalVAE(TrunkEncoder):
         img_hat, ft_hat = net.decode(z, data["last_action"][rows])
         target = img_u8.permute(0, 3, 1, 2).float() / 255.0
         recon = (((img_hat - target) * 255.0) ** 2).flatten(1).sum(1) + (
-            ((ft_hat - data["ft"][rows]) * self.ft_recon_scale) ** 2).sum(1)
+            ((ft_hat - data["ft"][rows]) * self._ft_scale()) ** 2).sum(1)
         kl = gaussian_kl(mu, log_std, torch.zeros_like(mu), torch.zeros_like(log_std))
         zero = mu.new_zeros(())
         terms = {"recon": recon.mean(), "kl": kl.mean(), "success": zero, "pred_z": zero,
@@ -265,3 +291,11 @@ FtProprioVAELowKL = _variant(
     "FtProprioVAELowKL", "``vae_lowkl`` whose encoder reads force/torque and proprioception, "
     "not the image (it still reconstructs image and force).", kl_weight=0.1,
     required_modalities=(FT, PROPRIO))
+
+# The encoder zoo (issue 43): the pixel loss outweighs force ~80:1 at the default scale (12288
+# pixel errors against 6 force errors), so the force reading may be drowned; this one balances
+# the two modalities.
+VAELowKLBalanced = _variant(
+    "VAELowKLBalanced", "``vae_lowkl`` with modality-balanced reconstruction: force/torque "
+    "weighs as much as the image at equal per-element error in standard deviations.",
+    kl_weight=0.1, ft_recon_scale="balanced")
