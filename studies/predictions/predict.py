@@ -48,12 +48,19 @@ def main() -> int:
                          "in --out)")
     ap.add_argument("--out", type=Path, default=PREDICTIONS,
                     help="folder of the prediction tables (default %(default)s)")
+    ap.add_argument("--task", default=None,
+                    help="the task to predict, for a suite of several (e.g. the zoo's)")
+    ap.add_argument("--source-task", default=SOURCE_TASK,
+                    help="the task whose calibration predicts (default %(default)s; the task "
+                         "itself for the zoo's within-task test)")
     args = ap.parse_args()
 
     quick = load_suite("quick")
     source_records = records_of_suite(load_records(args.source), quick, args.source)
     source = results_of(build_plan(quick), source_records)
     suite = load_suite(args.suite)
+    if args.task is not None:
+        suite = suite.only_tasks([args.task])
     target = collect_results(build_plan(suite), Store(args.store))
     (task,) = suite.tasks
     out = args.out / f"{task}.csv"
@@ -68,13 +75,17 @@ def main() -> int:
     if target.rl_rows:
         raise SystemExit(f"{args.store} already holds RL records of {task}: a prediction made "
                          "now is not made before them")
+    if out.exists():
+        raise SystemExit(f"{out} exists: a pre-registered prediction is not remade; move it "
+                         "away first if it was never committed")
     families = {**encoder_families(source), **encoder_families(target)}
     pred = predict_task(source.metric_rows, source.rl_rows, target.metric_rows,
-                        source_task=SOURCE_TASK, target_task=task, agent=AGENT,
+                        source_task=args.source_task, target_task=task, agent=AGENT,
                         families=families,
-                        ceiling_source=privileged_return(source_records, SOURCE_TASK),
+                        ceiling_source=privileged_return(source_records, args.source_task),
                         ceiling_target=privileged_return(load_records(Store(args.store)), task),
                         choose=validated_method)
+    out.parent.mkdir(parents=True, exist_ok=True)
     pred.to_csv(out, index=False, float_format="%.6g")
     print(pred[["encoder", "family", "metric", "metric_value", "predicted_return", "ci_low",
                 "ci_high", "predicted_unclipped"]].to_string(index=False))
