@@ -22,6 +22,7 @@ variants with a temporal term train on such pairs and apply the VAE terms to bot
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Mapping
@@ -32,7 +33,16 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from repbench.dataset import FT, IMAGE, LAST_ACTION, PROPRIO, Dataset
+from repbench.dataset import (
+    FT,
+    FT_HISTORY,
+    HISTORY_STEPS,
+    IMAGE,
+    LAST_ACTION,
+    PROPRIO,
+    Dataset,
+    stacked_history,
+)
 from repbench.errors import ConfigError
 from repbench_encoders.networks import MultimodalVAENet, NetworkSpec
 from repbench_encoders.trunk import TrunkEncoder, make_variant
@@ -42,7 +52,7 @@ __all__ = [  # noqa: RUF022 (grouped: the base, the paper's ten, the ablations)
     "VAE", "VAELowKL", "SuccessVAE", "SuccessVAELowKL", "PredZVAE", "PredZVAELowKL",
     "PredImVAE", "PredImVAELowKL", "SmoothVAE", "SmoothVAELowKL",
     "VAELowKLD4", "VAELowKLD64", "ImageOnlyVAELowKL", "FtProprioVAELowKL",
-    "VAELowKLBalanced",
+    "VAELowKLBalanced", "ForceHistoryVAE", "VAELowKLFtHistory",
 ]
 
 LOSS_TERMS = ("recon", "kl", "success", "pred_z", "pred_im", "smooth")
@@ -299,3 +309,42 @@ VAELowKLBalanced = _variant(
     "VAELowKLBalanced", "``vae_lowkl`` with modality-balanced reconstruction: force/torque "
     "weighs as much as the image at equal per-element error in standard deviations.",
     kl_weight=0.1, ft_recon_scale="balanced")
+
+
+class ForceHistoryVAE(MultimodalVAE):
+    """A :class:`MultimodalVAE` whose force branch reads the last
+    :data:`~repbench.dataset.HISTORY_STEPS` force/torque readings of the episode
+    (``ft_history``) instead of the current one, and reconstructs them: one reading cannot tell
+    a stiff surface from a soft one whose rest height differs, a few at different depths can.
+
+    Agents' environments supply ``ft_history`` (:class:`repbench.rl.wrappers.ForceHistory`);
+    :meth:`repbench.Dataset.obs` derives it from stored episodes.
+    """
+
+    def fit(self, dataset: Dataset) -> ForceHistoryVAE:
+        """Train with each row's force input replaced by its ``ft_history``."""
+        if FT not in dataset.observations:
+            return super().fit(dataset)  # the base class names the missing modality
+        history = stacked_history(dataset.observations[FT], dataset.episode,
+                                  np.arange(len(dataset)), HISTORY_STEPS)
+        widened = dataclasses.replace(
+            dataset, observations={**dataset.observations, FT: history.astype(np.float32)})
+        super().fit(widened)
+        return self
+
+    def _network_spec(self, dataset: Dataset) -> NetworkSpec:
+        spec = super()._network_spec(dataset)
+        reads = [m for m in (IMAGE, FT, PROPRIO)
+                 if m in self.required_modalities or (m == FT and FT_HISTORY in
+                                                      self.required_modalities)]
+        return dataclasses.replace(spec, modalities=tuple(reads))
+
+    def _encode_obs(self, observations: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor]:
+        self.check_observations(observations)  # names ft_history if it is missing
+        return super()._encode_obs({**observations, FT: observations[FT_HISTORY]})
+
+
+VAELowKLFtHistory = make_variant(
+    ForceHistoryVAE, "VAELowKLFtHistory", "``vae_lowkl`` whose force branch reads (and "
+    "reconstructs) the last 4 force/torque readings of the episode.", module=__name__,
+    kl_weight=0.1, required_modalities=(IMAGE, FT_HISTORY, PROPRIO))

@@ -26,6 +26,12 @@ SCHEMA_VERSION = 1
 #: Observation modalities every task provides (``true_state`` is added as a privileged
 #: modality so the ``oracle`` encoder can read it; other encoders must ignore it).
 IMAGE, FT, PROPRIO, LAST_ACTION, TRUE_STATE = "image", "ft", "proprio", "last_action", "true_state"
+#: A derived modality: the last :data:`HISTORY_STEPS` force/torque readings of the episode,
+#: oldest first, flattened (``[N, HISTORY_STEPS * 6]``); before the episode's first step its
+#: first reading is repeated. :meth:`Dataset.obs` derives it from ``ft``, and the agents'
+#: environments add it (:class:`repbench.rl.wrappers.ForceHistory`) for encoders that read it.
+FT_HISTORY = "ft_history"
+HISTORY_STEPS = 4
 
 
 @dataclass
@@ -71,9 +77,14 @@ class Dataset:
 
     def obs(self, index: np.ndarray | slice | None = None, *, with_true_state: bool = True
             ) -> dict[str, np.ndarray]:
-        """Observation batch (modality → array) for ``index``; adds ``true_state``."""
+        """Observation batch (modality → array) for ``index``; adds ``true_state`` and the
+        derived ``ft_history`` (:data:`FT_HISTORY`)."""
         idx = slice(None) if index is None else index
         batch = {k: v[idx] for k, v in self.observations.items()}
+        if FT in self.observations:
+            rows = np.arange(len(self))[idx]
+            history = stacked_history(self.observations[FT], self.episode, rows, HISTORY_STEPS)
+            batch[FT_HISTORY] = history if np.ndim(rows) else history[0]
         if with_true_state:
             batch[TRUE_STATE] = self.true_state[idx]
         return batch
@@ -216,6 +227,24 @@ class Dataset:
                 "delete it and collect again"
             )
         return ds
+
+
+def stacked_history(values: np.ndarray, episode: np.ndarray, rows: np.ndarray | int,
+                    steps: int) -> np.ndarray:
+    """For each of ``rows``, the ``steps`` values of its episode ending at it, oldest first and
+    flattened (``[len(rows), steps * D]``); before the episode's first row its first value is
+    repeated. Rows must be sorted by episode and step, an episode's steps consecutive."""
+    values = np.asarray(values)
+    episode = np.asarray(episode)
+    rows = np.atleast_1d(np.asarray(rows, np.int64))
+    if steps < 1:
+        raise DataError(f"history steps must be >= 1, got {steps}")
+    n = episode.shape[0]
+    new = np.r_[True, episode[1:] != episode[:-1]] if n else np.zeros(0, bool)
+    start = np.maximum.accumulate(np.where(new, np.arange(n), 0))
+    lags = np.arange(steps - 1, -1, -1)
+    src = np.maximum(rows[:, None] - lags[None, :], start[rows][:, None])
+    return values[src].reshape(rows.size, -1)
 
 
 def successor_index(episode: np.ndarray, step: np.ndarray | None = None, offset: int = 1

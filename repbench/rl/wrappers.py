@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from repbench.dataset import TRUE_STATE
+from repbench.dataset import FT, FT_HISTORY, HISTORY_STEPS, TRUE_STATE
 from repbench.encoder import Encoder
 from repbench.errors import ConfigError, DataError
 from repbench.task import Task
@@ -177,12 +177,47 @@ def make_encoded_env(task: Task, encoder: Encoder, seed: int | None = None,
 
 def agent_env(task: Task, modalities: Any, seed: int | None = None) -> gym.Env:
     """``task.make_agent_env`` for an encoder reading ``modalities`` (no rendering when it
-    does not read the image), truncated at ``task.horizon``."""
-    env = task.make_agent_env(seed=seed, modalities=tuple(modalities))
+    does not read the image), truncated at ``task.horizon``; with the derived ``ft_history``
+    modality added (:class:`ForceHistory`) when the encoder reads it."""
+    modalities = tuple(modalities)
+    env = task.make_agent_env(seed=seed, modalities=modalities)
+    if FT_HISTORY in modalities:
+        env = ForceHistory(env)
     horizon = getattr(task, "horizon", None)
     if horizon:
         env = gym.wrappers.TimeLimit(env, max_episode_steps=int(horizon))
     return env
+
+
+class ForceHistory(gym.Wrapper):
+    """Adds ``ft_history`` to a dict-observation environment: the episode's last
+    :data:`~repbench.dataset.HISTORY_STEPS` ``ft`` readings, oldest first, flattened, the
+    first reading repeated before the episode's start — what :meth:`repbench.Dataset.obs`
+    derives from a stored episode (:func:`repbench.dataset.stacked_history`)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        ft = env.observation_space[FT]
+        self.observation_space = spaces.Dict({
+            **env.observation_space.spaces,
+            FT_HISTORY: spaces.Box(-np.inf, np.inf, (HISTORY_STEPS * ft.shape[0],),
+                                   np.float32)})
+        self._readings: list[np.ndarray] = []
+
+    def _add(self, obs: dict[str, Any], first: bool) -> dict[str, Any]:
+        ft = np.asarray(obs[FT], np.float32)
+        self._readings = ([ft] * HISTORY_STEPS if first
+                          else [*self._readings[1:], ft])
+        return {**obs, FT_HISTORY: np.concatenate(self._readings)}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[dict[str, Any], dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        return self._add(obs, first=True), info
+
+    def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._add(obs, first=False), reward, terminated, truncated, info
 
 
 class TrueStateInObservation(gym.Wrapper):

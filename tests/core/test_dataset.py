@@ -84,3 +84,24 @@ def test_invalid_arrays_rejected(mutate, match: str) -> None:  # type: ignore[no
 def test_concatenate_keeps_episodes_distinct() -> None:
     both = Dataset.concatenate([_dataset(2, 3), _dataset(3, 3)])
     assert both.n_episodes == 5 and len(both) == 15
+
+
+def test_stacked_history_known_answer_and_the_derived_modality() -> None:
+    from repbench.dataset import FT_HISTORY, HISTORY_STEPS, stacked_history
+    from repbench.testing.synthetic import synthetic_dataset
+
+    values = np.array([[1.0], [2.0], [3.0], [10.0], [20.0]])
+    episode = np.array([0, 0, 0, 1, 1])
+    out = stacked_history(values, episode, np.arange(5), 3)
+    np.testing.assert_array_equal(out, [[1, 1, 1], [1, 1, 2], [1, 2, 3], [10, 10, 10],
+                                        [10, 10, 20]])
+    np.testing.assert_array_equal(stacked_history(values, episode, np.array([4, 1]), 2),
+                                  [[10, 20], [1, 2]])
+    d = synthetic_dataset(n_episodes=2, steps=5, seed=0)
+    ft = d.observations["ft"]
+    batch = d.obs(slice(4, 7))  # the last step of episode 0, the first two of episode 1
+    assert batch[FT_HISTORY].shape == (3, HISTORY_STEPS * 6)
+    np.testing.assert_array_equal(batch[FT_HISTORY][0], ft[1:5].reshape(-1))
+    np.testing.assert_array_equal(batch[FT_HISTORY][1], np.tile(ft[5], HISTORY_STEPS))
+    np.testing.assert_array_equal(d.obs(6)[FT_HISTORY], batch[FT_HISTORY][2])  # unbatched
+    assert FT_HISTORY not in d.observations  # derived, never stored

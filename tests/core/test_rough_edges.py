@@ -153,3 +153,22 @@ def test_quick_on_a_contact_rich_task_runs_the_stages_of_its_committed_suite(
     suite_file = ROOT / "leaderboards" / "quick" / folder / "suite_20k.toml"
     mine = plan_identities(load_suite("quick").only_tasks([task]))
     assert mine and mine == plan_identities(load_suite(suite_file))
+
+
+def test_the_zoo_runs_quicks_stages_but_the_encoders() -> None:
+    """The zoo (leaderboards/quick/zoo/suite.toml) is quick's settings on other encoders: its
+    datasets, privileged agents and diagnostics are quick's own stages, so its encoders are
+    scored on the reference's data and their records fold into quick's reference."""
+    from repbench.pipeline.records import identity_key
+
+    zoo = load_suite(ROOT / "leaderboards" / "quick" / "zoo" / "suite.toml")
+    quick = load_suite("quick")
+    assert not set(zoo.encoders) & set(quick.encoders)
+    assert {"mae", "vae_lowkl_ft_history", "r3m", "dino"} <= set(zoo.encoders)
+
+    def shared(suite):
+        return {identity_key(s.record) for s in build_plan(suite).stages()
+                if s.record is not None and s.kind in ("dataset", "full_state_agent",
+                                                       "diagnostics")}
+
+    assert len(shared(zoo)) == 15 and shared(zoo) == shared(quick)

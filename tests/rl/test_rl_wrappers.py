@@ -104,3 +104,40 @@ def test_batch_encoded_vec_env_matches_the_single_wrapper(toy_task, state_encode
     assert dones.all()  # truncated at the horizon, auto-reset
     for info, r in zip(infos, ref_steps, strict=True):
         np.testing.assert_array_equal(info["terminal_observation"], r[0])
+
+
+def test_the_agents_force_history_is_the_one_the_dataset_derives(toy_task, toy_dataset):
+    """ForceHistory (live) and Dataset.obs (stored episodes) give the same ft_history: roll
+    an episode out, store its readings the way a dataset does, derive, compare."""
+    from repbench.dataset import FT_HISTORY, HISTORY_STEPS, stacked_history
+    from repbench.rl.wrappers import agent_env
+
+    env = agent_env(toy_task, ("image", FT_HISTORY, "proprio"), seed=0)
+    assert env.observation_space[FT_HISTORY].shape == (HISTORY_STEPS * 6,)
+    live, readings = [], []
+    for episode in range(2):
+        obs, _ = env.reset(seed=episode)
+        for _ in range(6):
+            live.append(obs[FT_HISTORY])
+            readings.append(obs["ft"])
+            obs, *_ = env.step(np.full(2, 0.7 if episode else -0.4, np.float32))
+    episodes = np.repeat([0, 1], 6)
+    derived = stacked_history(np.array(readings), episodes, np.arange(12), HISTORY_STEPS)
+    np.testing.assert_array_equal(np.array(live), derived)
+    # a reset starts over: the first reading, repeated
+    first = np.array(live)[6].reshape(HISTORY_STEPS, 6)
+    assert (first == first[0]).all()
+    assert not (np.array(live)[11].reshape(HISTORY_STEPS, 6) == first[0]).all()
+
+
+def test_an_encoder_reading_the_force_history_runs_in_the_agents_env(toy_task, toy_dataset):
+    from repbench_encoders.vae import VAELowKLFtHistory
+
+    enc = VAELowKLFtHistory(epochs=1, batch_size=16, progress=False).fit(toy_dataset)
+    env = make_encoded_env(toy_task, enc, seed=0)
+    obs, _ = env.reset(seed=0)
+    obs2, *_ = env.step(np.ones(2, np.float32))
+    assert obs.shape == obs2.shape == (16 + 4,) and np.isfinite(obs2).all()
+    without = {k: v for k, v in toy_dataset.obs(slice(0, 2)).items() if k != "ft_history"}
+    with pytest.raises(DataError, match="ft_history"):
+        enc.encode(without)
