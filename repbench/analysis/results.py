@@ -334,7 +334,7 @@ def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Pa
     folder = Path(folder)
     if folder.is_dir():
         for old in folder.rglob("*.json"):
-            old.unlink()
+            old.unlink(missing_ok=True)
     paths = []
     for r in records:
         parts = [r["task"]["name"], *((r.get(p) or {}).get("name") for p in PLUGIN_PARTS[1:])]

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -827,7 +828,7 @@ def shrink_png(path: Path, colors: int = 256) -> Path:
 
     with Image.open(path) as im:
         small = im.convert("RGB").quantize(colors, method=Image.Quantize.MEDIANCUT)
-    tmp = path.with_name(f".{path.name}.tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp")
     small.save(tmp, format="PNG", optimize=True)
     if tmp.stat().st_size < path.stat().st_size:
         tmp.replace(path)

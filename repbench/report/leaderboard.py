@@ -22,8 +22,10 @@ them by identity, :mod:`repbench.analysis.results`); nothing here reads a plan o
 
 from __future__ import annotations
 
+import contextlib
 import json
-from collections.abc import Sequence
+import os
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +37,11 @@ from repbench.analysis.results import Results, build_results, write_records
 from repbench.report.families import _families
 from repbench.rl.aggregate import aggregate_seeds
 
-__all__ = ["Results", "build_results", "encoder_table", "metric_table", "write_leaderboards"]
+__all__ = ["BOARD_LOCK", "Results", "board_lock", "build_results", "encoder_table",
+           "metric_table", "write_leaderboards"]
+
+#: The lock file a leaderboard write holds in its folder (:func:`board_lock`).
+BOARD_LOCK = ".repbench-board.lock"
 
 
 #: How each encoder was trained (from its encoder record; empty for untrained baselines).
@@ -226,10 +232,36 @@ def write_leaderboards(res: Results, out_dir: Path, longer: Results | None = Non
     their records stay where they are (their folders go in the provenance); ``predictions``
     (pre-registered cross-task predictions) are scored in ``robustness.csv``.
     """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with board_lock(out_dir):
+        return _write_leaderboards(res, out_dir, longer, agent_run, predictions, copy_records)
+
+
+@contextlib.contextmanager
+def board_lock(out_dir: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the leaderboard folder ``out_dir`` (``flock`` on its
+    :data:`BOARD_LOCK` file): two writes of one board run one after the other instead of
+    interleaving their records, figures and temporary files. The kernel drops the lock with a
+    process that dies."""
+    try:
+        import fcntl
+    except ImportError:  # no flock (Windows): unguarded, as before
+        yield
+        return
+    fd = os.open(out_dir / BOARD_LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _write_leaderboards(res: Results, out_dir: Path, longer: Results | None,
+                        agent_run: Results | None, predictions: Sequence[pd.DataFrame],
+                        copy_records: bool) -> Path:
     from repbench.report.figures import make_figures
     from repbench.report.report_html import render_html
 
-    out_dir.mkdir(parents=True, exist_ok=True)
     enc = encoder_table(res)
     met = metric_table(res)
     ranking, res.loo_predictions = metric_ranking(res)

@@ -248,3 +248,44 @@ def test_a_board_can_leave_its_records_where_they_are(finished: tuple[Path, Path
     with pytest.raises(ConfigError, match=r"needs --records"):
         rebuild_leaderboards(suite, store=store, out=tmp_path / "b2", copy_records=False)
     assert not (tmp_path / "b2").exists()
+
+
+def test_two_writes_to_one_board_run_one_after_the_other(finished: tuple[Path, Path, Path],
+                                                         tmp_path: Path) -> None:
+    """A write waits for the board's lock (another write holding it) and then completes; two
+    `repbench leaderboard` processes on one --out both succeed and leave one whole board."""
+    import subprocess
+    import sys
+    import threading
+
+    from repbench.report.leaderboard import BOARD_LOCK, board_lock
+
+    suite, _, lb = finished
+    out = tmp_path / "board"
+    out.mkdir()
+    done = threading.Event()
+
+    def write() -> None:
+        rebuild_leaderboards(suite, records=lb / "records", out=out)
+        done.set()
+
+    with board_lock(out):
+        writer = threading.Thread(target=write)
+        writer.start()
+        assert not done.wait(3.0)  # blocked while the lock is held
+        assert not (out / "index.html").exists()
+    writer.join(120)
+    assert done.is_set() and (out / "index.html").is_file() and (out / BOARD_LOCK).exists()
+
+    both = tmp_path / "both"
+    cmd = [sys.executable, "-m", "repbench.cli", "leaderboard", "--suite", str(suite),
+           "--records", str(lb / "records"), "--out", str(both)]
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    results = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [err for _, err in results]
+    written = sorted(p.relative_to(both / "records") for p in (both / "records").rglob("*.json"))
+    assert written == sorted(p.relative_to(lb / "records")
+                             for p in (lb / "records").rglob("*.json"))
+    assert not list(both.rglob("*.tmp"))
+    assert (both / "encoders.csv").read_text() == (lb / "encoders.csv").read_text()
