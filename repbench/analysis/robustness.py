@@ -40,7 +40,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -408,11 +408,20 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
     for task in sorted({t for t, _ in pairs}):
         agents = {a for t, a in both_pairs if t == task}
         if {"sac", "ddpg"} <= agents:
-            checks.append(ranking_agreement(
+            agreement = ranking_agreement(
                 returns_by_encoder(both_rows, task, "sac"),
                 returns_by_encoder(both_rows, task, "ddpg"),
                 check=f"SAC vs DDPG ranking {task}", kind="spearman",
-                threshold=AGENT_THRESHOLD))
+                threshold=AGENT_THRESHOLD)
+            budgets = {a: sorted({int(r["train_steps"]) for r in both_rows
+                                  if r["task"] == task and r["agent"] == a
+                                  and r.get("train_steps") is not None})
+                       for a in ("sac", "ddpg")}
+            if budgets["sac"] != budgets["ddpg"]:  # each agent where it learns: say so
+                said = ", ".join(f"{a.upper()} at {'/'.join(map(steps_label, b))} steps"
+                                 for a, b in budgets.items())
+                agreement = replace(agreement, detail=f"{said}; {agreement.detail}")
+            checks.append(agreement)
             if ranking is not None:
                 checks.append(best_metric_agreement(
                     _board(ranking, task, "sac"), _board(ranking, task, "ddpg"),

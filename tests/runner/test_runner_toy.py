@@ -280,12 +280,17 @@ def test_agent_run_rows_join_robustness_csv(suite_file: Path, tmp_path: Path,
     assert prov["agent_run"]["agents"] == ["ddpg"]
     assert prov["agent_run"]["suite"] == "toy_ddpg"
 
-    # SAC again is not another agent; DDPG at another budget is not this suite's budget
+    assert not rows.loc["SAC vs DDPG ranking ToyReach-v0", "detail"].startswith("SAC at")
+
+    # SAC again is not another agent
     with pytest.raises(ConfigError, match="which this suite already trains"):
         rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x",
                              agent_run=tmp_path / "lb")
+    # DDPG at its own budget (where it learns): the row says which budgets it compares
     ddpg_file.write_text(ddpg_suite.replace("train_steps = 150\n", "train_steps = 200\n", 1))
     run_suite(ddpg_file, store=store, out=tmp_path / "ddpg200", workers=1, progress=False)
-    with pytest.raises(ConfigError, match=r"runs are \[200\] steps, this suite's \[150\]"):
-        rebuild_leaderboards(suite_file, store=store, out=tmp_path / "x",
-                             agent_run=tmp_path / "ddpg200")
+    out = rebuild_leaderboards(suite_file, store=store, out=tmp_path / "at200",
+                               agent_run=tmp_path / "ddpg200")
+    detail = pd.read_csv(out / "robustness.csv").set_index("check").loc[
+        "SAC vs DDPG ranking ToyReach-v0", "detail"]
+    assert detail.startswith("SAC at 150 steps, DDPG at 200 steps; 3 encoders")
