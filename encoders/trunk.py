@@ -129,8 +129,10 @@ class TrunkEncoder(Encoder):
         integer("epochs", 0)
         integer("batch_size", 1)
         integer("patience", 0)
-        if not (isinstance(self.learning_rate, (int, float)) and self.learning_rate > 0):
-            raise ConfigError(f"{name}: learning_rate must be > 0, got {self.learning_rate!r}")
+        lr = self.learning_rate
+        if isinstance(lr, bool) or not (isinstance(lr, (int, float)) and math.isfinite(lr)
+                                        and lr > 0):
+            raise ConfigError(f"{name}: learning_rate must be a finite number > 0, got {lr!r}")
         vf = self.validation_fraction
         if not (isinstance(vf, (int, float)) and 0.0 <= vf < 1.0):
             raise ConfigError(f"{name}: validation_fraction must be in [0, 1), got {vf!r}")
@@ -170,8 +172,17 @@ class TrunkEncoder(Encoder):
     # -- fitting -------------------------------------------------------------------------------
     def fit(self, dataset: Dataset) -> TrunkEncoder:
         """Train on ``dataset``: at most ``epochs`` passes, early stopping on held-out episodes
-        when ``patience > 0``; the weights of the best held-out epoch are kept."""
+        when ``patience > 0``; the weights of the best held-out epoch are kept. A fit that
+        fails (or is interrupted) leaves the encoder unfitted, not half-fitted."""
         self.check_params()
+        try:
+            return self._fit(dataset)
+        except BaseException:
+            for key in [k for k in vars(self) if k.endswith("_") and not k.startswith("_")]:
+                delattr(self, key)
+            raise
+
+    def _fit(self, dataset: Dataset) -> TrunkEncoder:
         name = type(self).__name__
         spec = self._network_spec(dataset)
         rows, nxt = self._pairs(dataset)

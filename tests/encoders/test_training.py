@@ -100,3 +100,20 @@ def test_history_survives_save_and_load(tiny_dataset: Dataset, tmp_path) -> None
     enc = VAELowKL(epochs=2, patience=1, validation_fraction=0.34, **FAST).fit(tiny_dataset)
     loaded = VAELowKL.load(enc.save(tmp_path / "e.pt"))
     assert loaded.history_ == enc.history_ and loaded.best_epoch_ == enc.best_epoch_
+
+
+def test_a_failed_fit_leaves_the_encoder_unfitted(tiny_dataset) -> None:
+    """The objective's preparation fails after the input statistics were learned (the dataset
+    names an unknown task for supervised_task's target): the encoder must not look fitted."""
+    import dataclasses
+
+    import repbench
+    from repbench.errors import RepbenchError
+
+    unknown = dataclasses.replace(tiny_dataset, metadata={"task": "Nope-v0"})
+    enc = repbench.encoders.get("supervised_task")(epochs=1, progress=False)
+    with pytest.raises(DataError, match="needs the dataset's task to be registered"):
+        enc.fit(unknown)
+    assert not enc.is_fitted
+    with pytest.raises(RepbenchError, match="is not fitted"):
+        enc.encode(tiny_dataset.obs())

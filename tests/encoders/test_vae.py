@@ -103,7 +103,9 @@ def test_nan_in_data_diverges_with_clear_message(tiny_dataset: Dataset) -> None:
 @pytest.mark.parametrize(("params", "match"), [
     ({"latent_dim": 0}, "latent_dim must be a positive integer"),
     ({"epochs": -1}, "epochs must be an integer >= 0"),
-    ({"learning_rate": 0.0}, "learning_rate must be > 0"),
+    ({"learning_rate": 0.0}, "learning_rate must be a finite number > 0, got 0.0"),
+    ({"learning_rate": True}, "learning_rate must be a finite number > 0, got True"),
+    ({"learning_rate": float("inf")}, "learning_rate must be a finite number > 0, got inf"),
     ({"kl_weight": -1.0}, "kl_weight must be a finite number >= 0"),
     ({"device": "tpu9"}, "device 'tpu9' is not a torch device"),
 ])
