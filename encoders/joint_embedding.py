@@ -21,8 +21,12 @@ of an observation (the image randomly shifted, force and proprioception noised:
 The losses are written here because the field's library for them (``lightly``) cannot be
 installed beside this project's CPU torch (its ``torchvision`` dependency needs the CUDA build);
 each is tested against a direct, loop-based transcription of its paper's formula and its known
-answers (``tests/encoders/test_joint_embedding.py``). Projection heads use LayerNorm, not
-BatchNorm, so that nothing depends on batch statistics. ``encode`` returns the trunk's μ_z.
+answers (``tests/encoders/test_joint_embedding.py``). The heads (projector, predictor,
+transition) use BatchNorm as the papers' do: with LayerNorm instead, BYOL's loss reached 0 by
+the second epoch on the peg-in-hole's data (its projections collapsed to one direction) and
+DINO's stayed at ln K (a uniform teacher), and both learn with it (measured on synthetic data:
+BYOL 1.53 -> 0.35, DINO 3.74 -> 3.10 < ln 64 in 6 epochs). The heads are not part of
+``encode``, so the latent never depends on the batch. ``encode`` returns the trunk's μ_z.
 """
 
 from __future__ import annotations
@@ -115,7 +119,7 @@ def barlow_twins_loss(z1: torch.Tensor, z2: torch.Tensor, off_diagonal_weight: f
 
 
 def _head(n_in: int, hidden: int, n_out: int) -> nn.Sequential:
-    return nn.Sequential(nn.Linear(n_in, hidden), nn.LayerNorm(hidden), nn.ReLU(),
+    return nn.Sequential(nn.Linear(n_in, hidden), nn.BatchNorm1d(hidden), nn.ReLU(),
                          nn.Linear(hidden, n_out))
 
 
@@ -203,6 +207,8 @@ class JointEmbeddingEncoder(TrunkEncoder):
     """
 
     family = "joint_embedding"
+    #: 1: BatchNorm heads (0, LayerNorm heads, collapsed for BYOL and DINO; never in a record)
+    version = 1
 
     LOSS_TERMS = ("objective", "invariance", "variance", "covariance", "embedding_std")
 
@@ -283,6 +289,9 @@ class JointEmbeddingEncoder(TrunkEncoder):
                     idx_next: torch.Tensor | None, gen: torch.Generator, training: bool
                     ) -> dict[str, torch.Tensor]:
         net, shift, noise = self.net_, int(self.shift), float(self.input_noise)
+        if training and idx.shape[0] == 1:  # BatchNorm needs two rows: an epoch's last batch
+            idx = idx.repeat(2)
+            idx_next = None if idx_next is None else idx_next.repeat(2)
         if self.method == "spr":
             assert idx_next is not None
             online = augmented_inputs(self, data, idx, gen, shift, noise)

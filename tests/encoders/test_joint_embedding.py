@@ -124,13 +124,21 @@ def test_barlow_twins_is_zero_at_the_identity_and_counts_correlations() -> None:
 
 
 # -- the encoders ---------------------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["simclr", "byol", "vicreg", "barlow_twins", "spr"])
-def test_training_lowers_the_objective(name: str, small_dataset: Dataset) -> None:
-    """Measured (one torch thread, 6 epochs): simclr 2.59 -> 1.88, byol 1.42 -> 0.04,
-    vicreg 19.6 -> 16.6, barlow_twins 24.7 -> 18.1, spr 1.38 -> 0.06."""
+@pytest.mark.parametrize(("name", "max_ratio"), [
+    ("simclr", 0.75), ("byol", 0.3), ("dino", 0.9), ("vicreg", 0.92), ("barlow_twins", 0.75),
+    ("spr", 0.5)])
+def test_training_lowers_the_objective(name: str, max_ratio: float,
+                                       small_dataset: Dataset) -> None:
+    """Last over first epoch's objective, measured (one torch thread, 6 epochs, BatchNorm
+    heads): simclr 2.21 -> 1.52 (0.68), byol 1.72 -> 0.37 (0.22), dino 3.58 -> 2.92 (0.82; ln 64
+    = 4.16 is a uniform teacher, the collapse the LayerNorm heads fell into), vicreg 18.4 ->
+    15.8 (0.86; its variance hinge floors it on 16-row batches), barlow_twins 24.3 -> 15.7
+    (0.65), spr 1.76 -> 0.74 (0.42). An objective that does not train stays near 1."""
     enc = repbench.encoders.get(name)(epochs=6, **FAST).fit(small_dataset)
     curve = [h["train"]["objective"] for h in enc.history_]
-    assert curve[-1] < 0.85 * curve[0], curve
+    assert curve[-1] < max_ratio * curve[0], curve
+    if name == "dino":
+        assert curve[-1] < math.log(64) - 0.5, curve
     # the latent did not collapse to a point
     assert enc.history_[-1]["train"]["embedding_std"] > 0.05
 
@@ -169,3 +177,10 @@ def test_bad_parameters_are_one_line_errors(params: dict, message: str,
                                             tiny_dataset: Dataset) -> None:
     with pytest.raises(ConfigError, match=message):
         JointEmbeddingEncoder(**params, **FAST).fit(tiny_dataset)
+
+
+def test_an_epochs_last_batch_of_one_row_trains(tiny_dataset: Dataset) -> None:
+    """BatchNorm heads need two rows; 24 rows in batches of 23 leave one."""
+    enc = JointEmbeddingEncoder(method="byol", epochs=1, batch_size=23,
+                                progress=False).fit(tiny_dataset)
+    assert np.isfinite(enc.history_[0]["train"]["objective"])
