@@ -1,8 +1,8 @@
 """Encoder families as the figures show them: one colour and marker per family, so a reader
 matches a point or a panel to a kind of encoder without a 23-entry legend.
 
-The plugin's ``family`` attribute says ``vae``, ``contrastive``, ``supervised`` or
-``baseline``; the VAE family is split here by name into the paper's VAEs, their low-KL twins
+The plugin's ``family`` attribute says ``vae``, ``contrastive``, ``supervised``,
+``joint_embedding``, ``control_objective``, ``mae`` or ``baseline``; the VAE family is split here by name into the paper's VAEs, their low-KL twins
 (``<name>_lowkl``) and the ablations of those twins (``<name>_lowkl_<variant>``).
 """
 
@@ -20,11 +20,16 @@ FAMILY_STYLE: dict[str, tuple[str, str]] = {
     "ablations": ("#9467bd", "v"),
     "contrastive": ("#2ca02c", "^"),
     "supervised": ("#d62728", "P"),
+    # the zoo (encoders/joint_embedding.py, control_objectives.py, mae.py)
+    "joint embedding": ("#17becf", "*"),
+    "control objectives": ("#bcbd22", "h"),
+    "masked autoencoder": ("#e377c2", "p"),
     "baselines": ("#3a3a3a", "s"),
 }
 _OTHER_STYLE = ("#8c564b", "X")
 _PLUGIN_FAMILY = {"baseline": "baselines", "contrastive": "contrastive",
-                  "supervised": "supervised"}
+                  "supervised": "supervised", "joint_embedding": "joint embedding",
+                  "control_objective": "control objectives", "mae": "masked autoencoder"}
 
 
 def display_family(encoder: str, family: str | None) -> str:

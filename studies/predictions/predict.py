@@ -18,6 +18,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+from scipy import stats
+
 from repbench.analysis.results import load_records
 from repbench.analysis.robustness import validated_method
 from repbench.analysis.transfer import (
@@ -71,6 +74,19 @@ def main() -> int:
                      "inside"]].to_string(index=False))
         print(f"{check.check}: {check.statistic} {check.value:.2f} "
               f"[{check.ci_low:.2f}, {check.ci_high:.2f}] -> {check.verdict}; {check.detail}")
+        scored = table[table["n_seeds"] > 0]
+        n_in, n = int(scored["inside"].sum()), len(scored)
+        ci = stats.binomtest(n_in, n).proportion_ci(method="exact")
+        rmse = float(np.sqrt(np.mean((scored["predicted_return"]
+                                      - scored["actual_return"]) ** 2)))
+        _, reference, _, _ = validated_method(
+            source.metric_rows, source.rl_rows,
+            {**encoder_families(source), **encoder_families(target)}, args.source_task, AGENT)
+        print(f"coverage: {n_in}/{n} inside the stated intervals (nominal "
+              f"{scored['coverage'].iloc[0]:.0%}), Clopper-Pearson 95 % "
+              f"[{ci.low:.2f}, {ci.high:.2f}]; RMSE of predicted_return {rmse:.0f}")
+        if reference is not None:
+            print(f"the reference's own held-out figures: {reference.detail}")
         return 0
     if target.rl_rows:
         raise SystemExit(f"{args.store} already holds RL records of {task}: a prediction made "

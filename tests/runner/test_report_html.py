@@ -284,3 +284,17 @@ def test_the_shipped_quick_page_is_small_and_answers_first() -> None:
                      for r in best.itertuples()]
     linked = re.findall(r'<img [^>]*src="(figures/[^"]+)"', page)
     assert len(linked) >= 60 and all((board / src).is_file() for src in linked)
+
+
+def test_every_shipped_encoder_family_is_drawn_in_its_own_style() -> None:
+    """The figures tell families apart by colour and marker: every family a shipped encoder
+    belongs to (the zoo's joint-embedding, control-objective and masked-autoencoder ones
+    included) has its own style, and no two families share one."""
+    from repbench import registry
+    from repbench.report.families import FAMILY_STYLE, _OTHER_STYLE, display_family, family_style
+
+    shown = {display_family(name, getattr(registry.encoders.get(name), "family", None))
+             for name in registry.encoders.names()}
+    assert {"joint embedding", "control objectives", "masked autoencoder"} <= shown
+    assert all(family_style(f) != _OTHER_STYLE for f in shown), shown - set(FAMILY_STYLE)
+    assert len(set(FAMILY_STYLE.values())) == len(FAMILY_STYLE)
