@@ -1,9 +1,10 @@
 """Encoder families as the figures show them: one colour and marker per family, so a reader
-matches a point or a panel to a kind of encoder without a 23-entry legend.
+matches a point or a panel to a kind of encoder without a 34-entry legend.
 
 The plugin's ``family`` attribute says ``vae``, ``contrastive``, ``supervised``,
-``joint_embedding``, ``control_objective``, ``mae`` or ``baseline``; the VAE family is split here by name into the paper's VAEs, their low-KL twins
-(``<name>_lowkl``) and the ablations of those twins (``<name>_lowkl_<variant>``).
+``joint_embedding``, ``control_objective``, ``mae`` or ``baseline``; the VAE family is split
+here by name into the paper's VAEs, their low-KL twins (``<name>_lowkl``) and the ablations of
+those twins (``<name>_lowkl_<variant>``).
 """
 
 from __future__ import annotations

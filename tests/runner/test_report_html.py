@@ -291,7 +291,7 @@ def test_every_shipped_encoder_family_is_drawn_in_its_own_style() -> None:
     belongs to (the zoo's joint-embedding, control-objective and masked-autoencoder ones
     included) has its own style, and no two families share one."""
     from repbench import registry
-    from repbench.report.families import FAMILY_STYLE, _OTHER_STYLE, display_family, family_style
+    from repbench.report.families import _OTHER_STYLE, FAMILY_STYLE, display_family, family_style
 
     shown = {display_family(name, getattr(registry.encoders.get(name), "family", None))
              for name in registry.encoders.names()}
