@@ -124,10 +124,10 @@ def leaderboard(
     agent_run: Annotated[Optional[Path], typer.Option(  # noqa: UP045
         "--agent-run", help="Leaderboard folder of another agent on the same tasks and budget "
         "(e.g. leaderboards/quick/ddpg): adds the SAC-vs-DDPG rows to robustness.csv.")] = None,
-    predictions: Annotated[Optional[Path], typer.Option(  # noqa: UP045
-        "--predictions", help="Folder of pre-registered cross-task predictions "
-        "(<task id>.csv, e.g. leaderboards/quick/predictions): scores them in "
-        "robustness.csv.")] = None,
+    predictions: Annotated[Optional[list[Path]], typer.Option(  # noqa: UP045
+        "--predictions", help="Folder of pre-registered predictions (<task id>.csv, e.g. "
+        "leaderboards/quick/predictions); repeat it for several (e.g. also "
+        "leaderboards/quick/predictions/zoo): scores them in robustness.csv.")] = None,
     copy_records: Annotated[bool, typer.Option(
         "--copy-records/--no-copy-records", help="Copy the --records into OUT/records (the "
         "default), or leave them where they are and name their folders in provenance.json: for "

@@ -132,6 +132,18 @@ def read_prediction(path: str | Path) -> pd.DataFrame:
     return table
 
 
+def prediction_check_name(predictions: pd.DataFrame) -> str:
+    """The name of the ranking check that scores ``predictions`` (one task × agent): "<source>
+    calibration predicts <task> <agent>" across tasks; within one task, where the predicted
+    encoders are the ones added after the calibration (the zoo), "<task> calibration predicts
+    new encoders on <task> <agent>"."""
+    task, agent = str(predictions["task"].iloc[0]), str(predictions["agent"].iloc[0])
+    source = str(predictions["source_task"].iloc[0])
+    if source == task:
+        return f"{source} calibration predicts new encoders on {task} {agent}"
+    return f"{source} calibration predicts {task} {agent}"
+
+
 def score_predictions(predictions: pd.DataFrame, rl_rows: Sequence[Mapping[str, Any]], *,
                       n_bootstrap: int = 2000, seed: int = 0) -> tuple[Check, pd.DataFrame]:
     """The pre-registered test of ``predictions`` (one task × agent, :data:`COLUMNS`) against
@@ -152,7 +164,7 @@ def score_predictions(predictions: pd.DataFrame, rl_rows: Sequence[Mapping[str, 
     check = ranking_agreement(
         {e: [p] for e, p in zip(learned["encoder"], learned["predicted_unclipped"], strict=True)},
         {e: actual[e] for e in learned["encoder"]},
-        check=f"{predictions['source_task'].iloc[0]} calibration predicts {task} {agent}",
+        check=prediction_check_name(predictions),
         kind="spearman", threshold=TRANSFER_THRESHOLD, n_bootstrap=n_bootstrap, seed=seed)
     scored = table[table["n_seeds"] > 0]
     n_in, n = int(scored["inside"].sum()), len(scored)

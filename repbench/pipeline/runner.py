@@ -337,7 +337,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          records: str | Path | Sequence[str | Path] | None = None,
                          longer: str | Path | None = None,
                          agent_run: str | Path | None = None,
-                         predictions: str | Path | None = None,
+                         predictions: str | Path | Sequence[str | Path] | None = None,
                          copy_records: bool = True) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
@@ -348,7 +348,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     (:func:`longer_results`); with ``agent_run`` (another agent at this budget, e.g.
     ``leaderboards/quick/ddpg``) the agent-agreement rows (:func:`agent_run_results`); with
     ``predictions`` (a folder of pre-registered ``<task id>.csv``, e.g.
-    ``leaderboards/quick/predictions``) the cross-task prediction rows
+    ``leaderboards/quick/predictions``, or several) the prediction rows
     (:func:`load_predictions`). ``copy_records=False`` (only with ``records``) leaves the records
     in their folders, which ``provenance.json`` names, instead of copying them into
     ``<out>/records``: a board built from another board's records (one task of quick, say) then
@@ -383,7 +383,8 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     if agent_run is not None:
         other = agent_run_results(agent_run, results)
         results.provenance["agent_run"] = _companion_provenance(agent_run, other)
-    preds = load_predictions(predictions, results) if predictions is not None else []
+    folders = [predictions] if isinstance(predictions, (str, Path)) else list(predictions or [])
+    preds = [p for f in folders for p in load_predictions(f, results)]
     return write_leaderboards(results, out_dir, longer=extra, agent_run=other,
                               predictions=preds, copy_records=copy_records)
 

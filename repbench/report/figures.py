@@ -706,15 +706,17 @@ def cross_task_predictions(res: Any, path: Path) -> Path | None:
     rob = getattr(res, "robustness", None) or {}
     tables = rob.get("predictions") or {}
     panels = []
-    for (task, agent), table in tables.items():
+    for name, table in tables.items():
+        task, agent = str(table["task"].iloc[0]), str(table["agent"].iloc[0])
         steps = min(int(r["train_steps"]) for r in res.rl_rows if r["task"] == task)
         actual = _mean_returns(res.rl_rows, task, agent, steps)
         xs = {r.encoder: (r.predicted_return, r.ci_low, r.ci_high)
               for r in table.itertuples(index=False) if r.encoder in actual}
         source = table["source_task"].iloc[0]
-        note = _check_note(rob.get("checks"), f"{source} calibration predicts {task} {agent}",
-                           "ρ")
-        panels.append((xs, actual, f"{task} {agent}, predicted from {source}{note}",
+        note = _check_note(rob.get("checks"), name, "ρ")
+        whence = (f"{len(xs)} new encoders predicted from its reference" if source == task
+                  else f"predicted from {source}")
+        panels.append((xs, actual, f"{task} {agent}, {whence}{note}",
                        f"predicted before any RL record ({table['metric'].iloc[0]}, "
                        f"{source}'s line)", f"{agent} return (mean over seeds)"))
     return _agreement_figure(res, path, panels, {e for t in tables.values()

@@ -205,12 +205,12 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
     checks, heldout = check_results(res.metric_rows, res.rl_rows, encoder_families(res), ranking,
                                     longer=longer_rows, longer_ranking=longer_ranking,
                                     other_agent=other_rows, other_ranking=other_ranking)
-    scored: dict[tuple[str, str], pd.DataFrame] = {}
+    scored: dict[str, pd.DataFrame] = {}  # check name -> scored table
     have_rl = {(r["task"], r["agent"]) for r in res.rl_rows}
     for pred in predictions:
-        key = (str(pred["task"].iloc[0]), str(pred["agent"].iloc[0]))
-        if key in have_rl:
-            check, scored[key] = score_predictions(pred, res.rl_rows)
+        if (str(pred["task"].iloc[0]), str(pred["agent"].iloc[0])) in have_rl:
+            check, table = score_predictions(pred, res.rl_rows)
+            scored[check.check] = table
             checks.append(check)
     table = robustness_table(checks)
     res.robustness = {"checks": table, "heldout": heldout, "longer_rl": list(longer_rows),

@@ -152,3 +152,29 @@ def test_a_note_beside_the_prediction_reaches_the_scored_detail(tmp_path: Path) 
     assert check.detail.endswith("; note: agents read retrained encoders")
     assert read_prediction(tmp_path / f"{TARGET}.csv").attrs["note"] == \
         "agents read retrained encoders"
+
+
+def test_a_within_task_prediction_is_scored_beside_a_cross_task_one_of_the_same_task() -> None:
+    """The zoo's prediction (the target task's own calibration applied to encoders added after
+    it) and a cross-task prediction of the same task × agent are two checks, each with its
+    scored table: neither replaces the other, and the names say which is which."""
+    import pandas as pd
+
+    from repbench.analysis.transfer import prediction_check_name
+    from repbench.report.leaderboard import robustness_checks
+
+    target_m = {e: 0.5 * i for i, e in enumerate(ENCODERS)}
+    across = _predict(target_m)
+    within = across.assign(source_task=TARGET)
+    assert prediction_check_name(across) == f"{SOURCE} calibration predicts {TARGET} {AGENT}"
+    assert prediction_check_name(within) == \
+        f"{TARGET} calibration predicts new encoders on {TARGET} {AGENT}"
+    rl_rows = [dict(r, train_steps=10) for r in _actual({e: 10.0 * v
+                                                         for e, v in target_m.items()})]
+    res = SimpleNamespace(metric_rows=[dict(r, agent=AGENT) for r in _target(target_m)],
+                          rl_rows=rl_rows, encoder_rows=[])
+    table = robustness_checks(res, pd.DataFrame(), predictions=[across, within])
+    names = set(table["check"])
+    assert {prediction_check_name(across), prediction_check_name(within)} <= names
+    assert set(res.robustness["predictions"]) == {prediction_check_name(across),
+                                                 prediction_check_name(within)}
