@@ -712,6 +712,8 @@ def cross_task_predictions(res: Any, path: Path) -> Path | None:
         actual = _mean_returns(res.rl_rows, task, agent, steps)
         xs = {r.encoder: (r.predicted_return, r.ci_low, r.ci_high)
               for r in table.itertuples(index=False) if r.encoder in actual}
+        if not xs:
+            continue
         source = table["source_task"].iloc[0]
         note = _check_note(rob.get("checks"), name, "ρ")
         whence = (f"{len(xs)} new encoders predicted from its reference" if source == task

@@ -206,9 +206,10 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
                                     longer=longer_rows, longer_ranking=longer_ranking,
                                     other_agent=other_rows, other_ranking=other_ranking)
     scored: dict[str, pd.DataFrame] = {}  # check name -> scored table
-    have_rl = {(r["task"], r["agent"]) for r in res.rl_rows}
-    for pred in predictions:
-        if (str(pred["task"].iloc[0]), str(pred["agent"].iloc[0])) in have_rl:
+    have_rl = {(r["task"], r["agent"], r["encoder"]) for r in res.rl_rows}
+    for pred in predictions:  # scored once any predicted encoder has RL rows
+        if any((t, a, e) in have_rl for t, a, e in zip(pred["task"], pred["agent"],
+                                                        pred["encoder"], strict=True)):
             check, table = score_predictions(pred, res.rl_rows)
             scored[check.check] = table
             checks.append(check)

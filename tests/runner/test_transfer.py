@@ -173,8 +173,11 @@ def test_a_within_task_prediction_is_scored_beside_a_cross_task_one_of_the_same_
                                                          for e, v in target_m.items()})]
     res = SimpleNamespace(metric_rows=[dict(r, agent=AGENT) for r in _target(target_m)],
                           rl_rows=rl_rows, encoder_rows=[])
-    table = robustness_checks(res, pd.DataFrame(), predictions=[across, within])
+    # a prediction none of whose encoders has an RL row yet is not scored (no empty check)
+    unrun = within.assign(encoder="new_" + within["encoder"], source_task="Third-v0")
+    table = robustness_checks(res, pd.DataFrame(), predictions=[across, within, unrun])
     names = set(table["check"])
     assert {prediction_check_name(across), prediction_check_name(within)} <= names
+    assert prediction_check_name(unrun) not in names
     assert set(res.robustness["predictions"]) == {prediction_check_name(across),
                                                  prediction_check_name(within)}
