@@ -716,8 +716,7 @@ def cross_task_predictions(res: Any, path: Path) -> Path | None:
             continue
         source = table["source_task"].iloc[0]
         note = _check_note(rob.get("checks"), name, "ρ")
-        whence = (f"{len(xs)} new encoders predicted from its reference" if source == task
-                  else f"predicted from {source}")
+        whence = f"{len(xs)} new encoders" if source == task else f"predicted from {source}"
         panels.append((xs, actual, f"{task} {agent}, {whence}{note}",
                        f"predicted before any RL record ({table['metric'].iloc[0]}, "
                        f"{source}'s line)", f"{agent} return (mean over seeds)"))

@@ -298,3 +298,30 @@ def test_every_shipped_encoder_family_is_drawn_in_its_own_style() -> None:
     assert {"joint embedding", "control objectives", "masked autoencoder"} <= shown
     assert all(family_style(f) != _OTHER_STYLE for f in shown), shown - set(FAMILY_STYLE)
     assert len(set(FAMILY_STYLE.values())) == len(FAMILY_STYLE)
+
+
+def test_compact_svg_rounds_geometry_only_and_keeps_text_and_titles() -> None:
+    """The inline figure is kept small (the page has a size budget): geometry to 0.1 px, no
+    indentation, no spaces in styles; the text, hover titles and glyph transforms untouched."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from repbench.report.svg import compact_svg, figure_svg
+
+    raw = ('<g id="p1"><path d="M 152.821138 144.922298 \n L -0.01 2.5 \n" '
+           'style="fill: none; stroke: #3a3a3a"/>\n'
+           '  <text x="10.123456" transform="scale(0.015625)">ρ = 0.4517</text></g>')
+    assert compact_svg(raw) == (
+        '<g id="p1"><path d="M 152.8 144.9\nL 0.0 2.5\n" style="fill:none;stroke:#3a3a3a"/>\n'
+        '<text x="10.1" transform="scale(0.015625)">ρ = 0.4517</text></g>')
+    fig, ax = plt.subplots()
+    for i in range(200):
+        ax.plot([i * 0.01234567], [i * 0.07654321], "o", gid=f"mvr-{i}")
+    ax.set_title("T-v0 · ksg ↑")
+    svg = figure_svg(fig, {f"mvr-{i}": f"point {i}: 0.123456" for i in range(200)})
+    plt.close(fig)
+    assert "T-v0 · ksg ↑</text>" in svg  # text as text, not glyph outlines
+    assert '<g id="mvr-7"' in svg and "<title>point 7: 0.123456</title>" in svg
+    assert not re.search(r'\bd="[^"]*\d\.\d{2}', svg)  # no geometry beyond 0.1 px
