@@ -319,6 +319,9 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
             report.cached.append(i)
             times.add_earlier(s.kind, art.meta.get("wall_time_s"), s.cost_group)
     todo = [i for i in by_id if i not in finished]
+    for kind in sorted({by_id[i].kind for i in todo}):  # other plans' stages in this store
+        for meta in store.metas(kind):
+            times.add_elsewhere(kind, meta.get("wall_time_s"), meta.get("cost_group") or "")
     running: dict[Any, str] = {}
     started: dict[str, float] = {}
     blocked: set[str] = set()
@@ -386,33 +389,43 @@ def run_stages(specs: list[StageSpec], store: Store, executor: Any, *, progress:
 
 class StageTimes:
     """Expected wall seconds of a stage, from its cost group (:attr:`StageSpec.cost_group`)
-    if stages of that group have finished, else from its kind: in each case the mean of this
-    run's finished stages, else the median of the wall times the store recorded for them in
-    earlier runs (a resumed run knows an RL stage's length before its first one ends); else the
-    mean over every kind known, else 10 s."""
+    if stages of that group have a known time, else from its kind. For each, the first of: the
+    mean of this run's finished stages; the median of the wall times the store recorded for
+    this plan's finished stages (a resumed run knows an RL stage's length before its first one
+    ends); the median over the store's other stages (another suite's metrics and RL runs).
+    Else the mean over every kind known, else 10 s."""
 
     def __init__(self) -> None:
         self.now: dict[str, list[float]] = defaultdict(list)
         self.earlier: dict[str, list[float]] = defaultdict(list)
+        self.elsewhere: dict[str, list[float]] = defaultdict(list)
 
     def add(self, kind: str, seconds: float, group: str = "") -> None:
         for name in _names(kind, group):
             self.now[name].append(float(seconds))
 
     def add_earlier(self, kind: str, seconds: Any, group: str = "") -> None:
-        if isinstance(seconds, (int, float)) and seconds >= 0:
-            for name in _names(kind, group):
-                self.earlier[name].append(float(seconds))
+        _add_known(self.earlier, kind, seconds, group)
+
+    def add_elsewhere(self, kind: str, seconds: Any, group: str = "") -> None:
+        _add_known(self.elsewhere, kind, seconds, group)
 
     def expected(self, kind: str, group: str = "") -> float:
         for name in _names(kind, group)[::-1]:  # the group first, then the kind
             if self.now.get(name):
                 return sum(self.now[name]) / len(self.now[name])
-            if self.earlier.get(name):
-                return float(statistics.median(self.earlier[name]))
+            for known in (self.earlier, self.elsewhere):
+                if known.get(name):
+                    return float(statistics.median(known[name]))
         known = [t for name, v in (*self.now.items(), *self.earlier.items())
                  if not name.startswith(_GROUP) for t in v]
         return sum(known) / len(known) if known else 10.0
+
+
+def _add_known(times: dict[str, list[float]], kind: str, seconds: Any, group: str) -> None:
+    if isinstance(seconds, (int, float)) and seconds >= 0:
+        for name in _names(kind, group):
+            times[name].append(float(seconds))
 
 
 _GROUP = "group: "

@@ -368,6 +368,8 @@ def _compute(spec: StageSpec, store: Store) -> dict[str, Any]:
                         inputs=[k for _, k in spec.inputs.values()],
                         seeds={k: v for k, v in spec.config.items() if "seed" in k}) as writer:
         writer.extra_meta["label"] = spec.label
+        if spec.cost_group:  # a later run's time-left estimate reads it (StageTimes)
+            writer.extra_meta["cost_group"] = spec.cost_group
         cpu = time.process_time()
         _IMPLEMENTATIONS[spec.kind](spec, store, writer)
         if spec.record is not None:

@@ -288,6 +288,19 @@ class Store:
         arts = (self.get(stage, p.name) for p in sorted(base.iterdir()) if p.is_dir())
         return [a for a in arts if a is not None]
 
+    def metas(self, stage: str) -> Iterator[dict[str, Any]]:
+        """The ``meta.json`` of every finished artifact of a stage, unverified and unreadable
+        ones skipped: cheap enough to read a store of thousands of stages for an estimate."""
+        base = self.root / stage
+        if not base.is_dir():
+            return
+        for path in base.iterdir():
+            with contextlib.suppress(OSError, json.JSONDecodeError):
+                with open(path / META) as f:
+                    meta = json.load(f)
+                if isinstance(meta, dict):
+                    yield meta
+
     # -- locking ---------------------------------------------------------------------------------
     def lock_path(self, stage: str, key: str) -> Path:
         return self.root / stage / f"{key}{LOCK_SUFFIX}"

@@ -8,7 +8,7 @@ import pytest
 
 from repbench.pipeline import executors
 from repbench.pipeline.executors import StageTimes, _status, run_stages
-from repbench.pipeline.stages import DATASET, RL, StageSpec
+from repbench.pipeline.stages import DATASET, ENCODER, METRIC, RL, StageSpec
 from repbench.pipeline.store import Store
 
 
@@ -86,22 +86,90 @@ def test_a_resumed_run_estimates_from_the_stores_wall_times(tmp_path: Path,
         seen.append(times.expected(RL))
         return ""
 
-    class OneAtATime:
-        capacity = 1
-
-        def submit(self, spec: StageSpec) -> str:
-            return spec.label
-
-        def wait_any(self, handles: list[str]) -> list[tuple[str, dict[str, object]]]:
-            return [(handles[0], {"status": "done"})]
-
-        def shutdown(self) -> None:
-            pass
-
-        def abort(self) -> None:
-            pass
-
     monkeypatch.setattr(executors, "_status", spy)
-    report = run_stages([done, todo], store, OneAtATime(), progress=False, echo=lambda _: None)
+    report = run_stages([done, todo], store, _OneAtATime(), progress=False, echo=lambda _: None)
     assert report.cached == [f"{RL}/{done.key}"]
     assert seen[0] == 480.0  # before any stage of this run ended: the store's wall time
+
+
+def test_stage_times_fall_back_to_the_stores_other_stages_before_every_kind() -> None:
+    """A resumed run whose finished stages are all encoders must not estimate a 2 s metric at
+    an encoder's 600 s: the store's stages of other suites know the metric's time."""
+    times = StageTimes()
+    times.add_earlier(ENCODER, 600.0)
+    assert times.expected(METRIC, "T ksg") == 600.0  # only every kind's mean to go on
+    times.add_elsewhere(METRIC, 2.0, "T ksg")
+    times.add_elsewhere(METRIC, 4.0, "T ksg")
+    times.add_elsewhere(METRIC, 90.0, "T mine")
+    times.add_elsewhere(METRIC, "?", "T mine")  # not a time: ignored
+    assert times.expected(METRIC, "T ksg") == 3.0  # its group's median elsewhere
+    assert times.expected(METRIC, "T mine") == 90.0
+    assert times.expected(METRIC, "T regression") == 4.0  # the kind's median elsewhere
+    times.add_earlier(METRIC, 10.0, "T mine")
+    assert times.expected(METRIC, "T mine") == 10.0  # this plan's own stages first
+    times.add(METRIC, 1.0)
+    assert times.expected(METRIC, "T ksg") == 3.0  # a group known elsewhere beats the kind now
+    assert times.expected(METRIC, "T regression") == 1.0
+
+
+def test_a_resumed_run_estimates_a_kind_it_has_not_run_from_the_stores_other_suites(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The DDPG row's resume said ~10 h for ~3 h of work: its 110 metric stages were each
+    estimated at an encoder's length. With another suite's metric stages in the store (their
+    meta carries the cost group), a metric is estimated at a metric's length."""
+    store = Store(tmp_path / "s")
+
+    def stored(spec: StageSpec, wall: float) -> None:
+        with store.write(spec.kind, spec.key, config=spec.config) as w:
+            w.write_json({"ok": True})
+            w.extra_meta["wall_time_s"] = wall
+            if spec.cost_group:
+                w.extra_meta["cost_group"] = spec.cost_group
+
+    encoder = StageSpec(ENCODER, {"e": 0}, label="enc")
+    stored(encoder, 600.0)
+    stored(StageSpec(METRIC, {"other suite": 1}, cost_group="T ksg"), 2.0)
+    (tmp_path / "s" / METRIC / "junk").mkdir()  # a folder without a meta.json: skipped
+    todo = [StageSpec(METRIC, {"m": i}, label=f"m{i}", cost_group="T ksg") for i in range(3)]
+    seen: list[float] = []
+
+    def spy(running: object, by_id: object, waiting: object, times: StageTimes,
+            *rest: object) -> str:
+        seen.append(times.expected(METRIC, "T ksg"))
+        return ""
+
+    monkeypatch.setattr(executors, "_status", spy)
+    run_stages([encoder, *todo], store, _OneAtATime(), progress=False, echo=lambda _: None)
+    assert seen[0] == 2.0
+
+
+def test_a_computed_stage_records_its_cost_group_for_later_estimates(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from repbench.pipeline import stages
+
+    monkeypatch.setitem(stages._IMPLEMENTATIONS, METRIC,
+                        lambda spec, store, w: w.write_json({"value": 1.0}))
+    spec = StageSpec(METRIC, {"m": 0}, label="T ksg × pca", cost_group="T ksg")
+    store = Store(tmp_path / "s")
+    assert stages.execute(spec, str(store.root))["status"] == "done"
+    (meta,) = store.metas(METRIC)
+    assert meta["cost_group"] == "T ksg"
+    assert meta["wall_time_s"] >= 0
+
+
+class _OneAtATime:
+    """An executor that runs nothing: each submitted stage is reported done at once."""
+
+    capacity = 1
+
+    def submit(self, spec: StageSpec) -> str:
+        return spec.label
+
+    def wait_any(self, handles: list[str]) -> list[tuple[str, dict[str, object]]]:
+        return [(handles[0], {"status": "done"})]
+
+    def shutdown(self) -> None:
+        pass
+
+    def abort(self) -> None:
+        pass
