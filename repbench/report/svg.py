@@ -21,8 +21,8 @@ def figure_svg(fig: Any, titles: Mapping[str, str]) -> str:
     """``fig`` as compact SVG text; ``titles`` maps an artist's gid to its hover text (escaped
     here). Ids are deterministic (fixed hash salt) so the page does not change between
     rebuilds. Text stays text (the browser's sans-serif font) instead of glyph outlines, and
-    coordinates are kept to 0.1 px (:func:`compact_svg`): a 1000-point figure is a third of
-    matplotlib's default size."""
+    coordinates are kept to 0.1 px (:func:`compact_svg`): quick's ~1000-point
+    ``metric_vs_return.svg`` is 1.03 MB instead of 1.36 MB with glyph outlines."""
     buf = io.StringIO()
     with matplotlib.rc_context({"svg.hashsalt": "repbench", "svg.fonttype": "none"}):
         fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
