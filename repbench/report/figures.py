@@ -619,24 +619,37 @@ def _agreement_figure(res: Any, path: Path, panels: Sequence[tuple[Any, ...]],
     return save_figure(fig, path)
 
 
-def agent_agreement(res: Any, path: Path) -> Path | None:
-    """Each encoder's mean SAC return (x) against its mean DDPG return (y), seeds' 95 %
-    t-intervals as bars, one panel per task of the joined other-agent run
-    (``res.robustness["other_agent_rl"]``) or of DDPG rows in the suite itself; the title
-    gives the Spearman check of ``robustness.csv``."""
+def agent_agreement_panels(res: Any) -> list[tuple[Any, ...]]:
+    """The panels of :func:`agent_agreement`, one per task with SAC and DDPG rows: each
+    encoder's mean return and 95 % t-interval under SAC (x) and DDPG (y), each agent at its own
+    budget (the smallest it has on the task: DDPG may run at 50k beside SAC at 10k), the title
+    and the axis labels naming them."""
     rob = getattr(res, "robustness", None) or {}
     rows = [*res.rl_rows, *(rob.get("other_agent_rl") or [])]
     tasks = sorted({r["task"] for r in rows if r["agent"] == "ddpg"}
                    & {r["task"] for r in rows if r["agent"] == "sac"})
     panels = []
     for task in tasks:
-        steps = min(int(r["train_steps"]) for r in rows if r["task"] == task)
+        steps = {agent: min(int(r["train_steps"]) for r in rows
+                            if r["task"] == task and r["agent"] == agent)
+                 for agent in ("sac", "ddpg")}
         note = _check_note(rob.get("checks"), f"SAC vs DDPG ranking {task}", "Spearman ρ")
-        panels.append((_mean_returns(rows, task, "sac", steps),
-                       _mean_returns(rows, task, "ddpg", steps), f"{task}{note}",
-                       f"SAC return at {steps} steps (mean over seeds)",
-                       f"DDPG return at {steps} steps"))
-    return _agreement_figure(res, path, panels,
+        panels.append((_mean_returns(rows, task, "sac", steps["sac"]),
+                       _mean_returns(rows, task, "ddpg", steps["ddpg"]), f"{task}{note}",
+                       f"SAC return at {steps['sac']} steps (mean over seeds)",
+                       f"DDPG return at {steps['ddpg']} steps"))
+    return panels
+
+
+def agent_agreement(res: Any, path: Path) -> Path | None:
+    """Each encoder's mean SAC return (x) against its mean DDPG return (y), seeds' 95 %
+    t-intervals as bars, one panel per task of the joined other-agent run
+    (``res.robustness["other_agent_rl"]``) or of DDPG rows in the suite itself
+    (:func:`agent_agreement_panels`); the title gives the Spearman check of
+    ``robustness.csv``."""
+    rob = getattr(res, "robustness", None) or {}
+    rows = [*res.rl_rows, *(rob.get("other_agent_rl") or [])]
+    return _agreement_figure(res, path, agent_agreement_panels(res),
                              {r["encoder"] for r in rows if r["agent"] == "ddpg"})
 
 

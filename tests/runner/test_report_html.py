@@ -6,6 +6,8 @@ import re
 import urllib.parse
 from pathlib import Path
 
+import pytest
+
 from repbench.pipeline.suite import load_suite
 from repbench.report.leaderboard import Results, encoder_table, metric_table, write_leaderboards
 
@@ -211,6 +213,25 @@ def test_figures_of_two_tasks_never_pool_their_returns(tmp_path: Path) -> None:
         assert (abs(float(x)) >= 96) == (task == "U-v0")   # U's metric values are shifted
         assert (float(ret) >= 1000) == (task == "U-v0"), t   # and so are its returns
     assert re.search(r"T-v0 · ksg ↑\s+ρ", svg) and re.search(r"U-v0 · ksg ↑\s+ρ", svg)
+
+
+def test_sac_vs_ddpg_panels_take_each_agent_at_its_own_budget() -> None:
+    """DDPG joined at 50k beside SAC at 10k: the figure's panel pairs each encoder's SAC mean at
+    10k with its DDPG mean at 50k (it took both at SAC's 10k and drew an empty panel), and its
+    axes name both budgets."""
+    from repbench.report.figures import agent_agreement_panels
+
+    res = _results()
+    res.rl_rows = [{**r, "train_steps": 10000} for r in res.rl_rows]
+    ddpg = [{**r, "agent": "ddpg", "train_steps": 50000, "eval_return": 2 * r["eval_return"]}
+            for r in res.rl_rows]
+    res.robustness = {"other_agent_rl": ddpg}
+    [(sac, dd, title, xlabel, ylabel)] = agent_agreement_panels(res)
+    assert set(sac) == set(dd) == {r["encoder"] for r in res.rl_rows}
+    for enc in sac:
+        assert dd[enc][0] == pytest.approx(2 * sac[enc][0])
+    assert title == "T-v0"
+    assert "10000 steps" in xlabel and "50000 steps" in ylabel
 
 
 def test_a_rebuild_leaves_no_figure_the_page_does_not_show(tmp_path: Path) -> None:
