@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import html
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +83,16 @@ def _caveat(detail: Any) -> str:
     return f"<br><span class='ci'>{html.escape(said.split(':', 1)[0])}</span>"
 
 
+_BUDGETS = re.compile(r"^(\w+ at [\w/]+ steps(?:, \w+ at [\w/]+ steps)+); ")
+
+
+def _budgets(detail: Any) -> str:
+    """The budgets a check compares, under its name, where they differ (its detail then starts
+    ``"SAC at 10k steps, DDPG at 50k steps; ..."``: each agent where it learns)."""
+    match = _BUDGETS.match(str(detail))
+    return f"<br><span class='ci'>{html.escape(match.group(1))}</span>" if match else ""
+
+
 def _checks_table(checks: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> list[str]:
     """The robustness checks other than coverage (transfers, agreements), one row each, and
     one line for the coverage checks."""
@@ -99,7 +110,7 @@ def _checks_table(checks: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> lis
         return out
     body = "".join(
         f"<tr title='{html.escape(str(r['detail']))}'>"
-        f"<td class='txt'>{html.escape(str(r['check']))}</td>"
+        f"<td class='txt'>{html.escape(str(r['check']))}{_budgets(r['detail'])}</td>"
         f"<td class='txt'>{html.escape(str(r['statistic']))}</td>"
         f"<td data-v='{r['value']}'>{_estimate(r, fmt)}</td>"
         f"<td class='txt' style='white-space:normal;min-width:240px'>"

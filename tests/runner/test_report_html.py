@@ -6,6 +6,7 @@ import re
 import urllib.parse
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from repbench.pipeline.suite import load_suite
@@ -232,6 +233,26 @@ def test_sac_vs_ddpg_panels_take_each_agent_at_its_own_budget() -> None:
         assert dd[enc][0] == pytest.approx(2 * sac[enc][0])
     assert title == "T-v0"
     assert "10000 steps" in xlabel and "50000 steps" in ylabel
+
+
+def test_the_answers_agreement_row_names_both_budgets_when_they_differ() -> None:
+    """SAC at 10k against DDPG at 50k: the answer's row says so under the check's name (it was
+    only in the row's hover text); a row at one budget gets no such line."""
+    from repbench.report.answer import _checks_table
+    from repbench.report.html_parts import VERDICT_COLORS, fmt
+
+    detail = "; 20 encoders; holds if the 95 % interval is above 0.5, fails if below"
+    checks = pd.DataFrame([
+        {"check": "SAC vs DDPG ranking T-v0", "statistic": "Spearman ρ", "value": 0.79,
+         "ci_low": 0.36, "ci_high": 0.90, "verdict": "inconclusive",
+         "detail": "SAC at 10k steps, DDPG at 50k steps" + detail},
+        {"check": "SAC vs DDPG ranking U-v0", "statistic": "Spearman ρ", "value": 0.5,
+         "ci_low": 0.1, "ci_high": 0.9, "verdict": "inconclusive", "detail": detail[2:]}])
+    page = "".join(_checks_table(checks, fmt, VERDICT_COLORS))
+    row_t = page[page.index("ranking T-v0"):page.index("ranking U-v0")]
+    assert "ranking T-v0<br><span class='ci'>SAC at 10k steps, DDPG at 50k steps</span>" in row_t
+    row_u = page[page.index("ranking U-v0"):]
+    assert "steps</span>" not in row_u[:row_u.index("</td>")]
 
 
 def test_a_rebuild_leaves_no_figure_the_page_does_not_show(tmp_path: Path) -> None:
