@@ -111,7 +111,8 @@ def _checks_table(checks: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> lis
     body = "".join(
         f"<tr title='{html.escape(str(r['detail']))}'>"
         f"<td class='txt'>{html.escape(str(r['check']))}{_budgets(r['detail'])}</td>"
-        f"<td class='txt'>{html.escape(str(r['statistic']))}</td>"
+        f"<td class='txt' style='white-space:normal;min-width:180px'>"
+        f"{html.escape(str(r['statistic']))}</td>"
         f"<td data-v='{r['value']}'>{_estimate(r, fmt)}</td>"
         f"<td class='txt' style='white-space:normal;min-width:240px'>"
         f"{_verdict(r['verdict'], colors)}{_caveat(r['detail'])}</td></tr>"

@@ -127,3 +127,19 @@ def _answer_matches_claims(page: Any, claims_csv: Path) -> None:
         assert len(shown) == 3 and all(math.isclose(a, b, rel_tol=1e-3, abs_tol=1e-3)
                                        for a, b in zip(shown, wanted, strict=True)), row
         assert row["verdict"] == want["verdict"], row
+
+
+def test_the_shipped_quick_pages_answer_needs_no_sideways_scroll() -> None:
+    """On the shipped quick page at 1280 px, every table of the answer fits its box: the
+    checks table was 1274 px in a 1166 px box, so each verdict's caveat ("not told apart from
+    the best...") sat behind a sideways scroll."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    if not Path(CHROMIUM).exists():
+        pytest.skip("Debian chromium is not installed (apt-get install chromium)")
+    page_path = Path(__file__).parents[2] / "leaderboards" / "quick" / "index.html"
+    with _page(sync_api, page_path, width=1280) as (browser, page):
+        sizes = page.eval_on_selector_all(
+            "#answer table", "els => els.map(e => [e.id, e.scrollWidth, e.clientWidth])")
+        browser.close()
+    assert {name for name, _, _ in sizes} >= {"answer-metrics", "answer-checks"}
+    assert all(scroll <= client + 1 for _, scroll, client in sizes), sizes
