@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -354,6 +355,22 @@ def budget_check_name(agent: str, short: int, long: int, task: str) -> str:
     return f"{agent.upper()} {steps_label(short)} vs {steps_label(long)} ranking {task}"
 
 
+_BUDGETS_SAID = re.compile(r"^(\w+ at [\w/]+ steps(?:, \w+ at [\w/]+ steps)+); ")
+
+
+def budgets_said(budgets: Mapping[str, Sequence[int]]) -> str:
+    """``"SAC at 10k steps, DDPG at 50k steps"``: the budgets an agreement check compares when
+    they differ, the start of its detail (read back by :func:`budgets_of_detail`)."""
+    return ", ".join(f"{a.upper()} at {'/'.join(map(steps_label, b))} steps"
+                     for a, b in budgets.items())
+
+
+def budgets_of_detail(detail: Any) -> str:
+    """The :func:`budgets_said` a check's detail starts with, or ``""``."""
+    match = _BUDGETS_SAID.match(str(detail))
+    return match.group(1) if match else ""
+
+
 def steps_label(steps: int) -> str:
     """30000 → "30k"; a budget that is not a whole thousand keeps its digits."""
     return f"{steps // 1000}k" if steps >= 1000 and steps % 1000 == 0 else str(steps)
@@ -418,9 +435,8 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
                                   and r.get("train_steps") is not None})
                        for a in ("sac", "ddpg")}
             if budgets["sac"] != budgets["ddpg"]:  # each agent where it learns: say so
-                said = ", ".join(f"{a.upper()} at {'/'.join(map(steps_label, b))} steps"
-                                 for a, b in budgets.items())
-                agreement = replace(agreement, detail=f"{said}; {agreement.detail}")
+                agreement = replace(agreement,
+                                    detail=f"{budgets_said(budgets)}; {agreement.detail}")
             checks.append(agreement)
             if ranking is not None:
                 checks.append(best_metric_agreement(

@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import html
 import math
-import re
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from repbench.analysis.robustness import budgets_of_detail
 from repbench.report.html_parts import VERDICT_COLORS as _VERDICT_COLORS
 from repbench.report.html_parts import figure as _figure
 from repbench.report.html_parts import fmt as _fmt
@@ -83,14 +83,11 @@ def _caveat(detail: Any) -> str:
     return f"<br><span class='ci'>{html.escape(said.split(':', 1)[0])}</span>"
 
 
-_BUDGETS = re.compile(r"^(\w+ at [\w/]+ steps(?:, \w+ at [\w/]+ steps)+); ")
-
-
 def _budgets(detail: Any) -> str:
-    """The budgets a check compares, under its name, where they differ (its detail then starts
-    ``"SAC at 10k steps, DDPG at 50k steps; ..."``: each agent where it learns)."""
-    match = _BUDGETS.match(str(detail))
-    return f"<br><span class='ci'>{html.escape(match.group(1))}</span>" if match else ""
+    """The budgets a check compares, under its name, where they differ (each agent where it
+    learns: "SAC at 10k steps, DDPG at 50k steps")."""
+    said = budgets_of_detail(detail)
+    return f"<br><span class='ci'>{html.escape(said)}</span>" if said else ""
 
 
 def _checks_table(checks: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> list[str]:

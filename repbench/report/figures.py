@@ -647,10 +647,8 @@ def agent_agreement(res: Any, path: Path) -> Path | None:
     (``res.robustness["other_agent_rl"]``) or of DDPG rows in the suite itself
     (:func:`agent_agreement_panels`); the title gives the Spearman check of
     ``robustness.csv``."""
-    rob = getattr(res, "robustness", None) or {}
-    rows = [*res.rl_rows, *(rob.get("other_agent_rl") or [])]
-    return _agreement_figure(res, path, agent_agreement_panels(res),
-                             {r["encoder"] for r in rows if r["agent"] == "ddpg"})
+    panels = agent_agreement_panels(res)
+    return _agreement_figure(res, path, panels, {e for panel in panels for e in panel[1]})
 
 
 def budget_agreement(res: Any, path: Path) -> Path | None:
