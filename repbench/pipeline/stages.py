@@ -10,18 +10,23 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import signal
 import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
+from repbench.errors import DataError
+from repbench.errors import RepbenchError
 from repbench.pipeline.diskfull import stop_when_full
 from repbench.pipeline.records import RECORD_FILE, make_record, write_record
 from repbench.pipeline.store import Store, file_sha256, stage_key
@@ -219,15 +224,19 @@ def metric_rows(rows: str, source: np.ndarray, source_names: list[str]
                 ) -> tuple[np.ndarray, str]:
     """Row indices a metric declared with ``rows`` is computed on, and a description.
 
-    ``"on_policy"`` selects the rows of the on-policy dataset; when the latents have none (a
-    suite without on-policy data) it falls back to every row and says so.
+    ``"on_policy"`` selects the rows of the on-policy dataset. When the latents have none (a
+    suite without on-policy data) it raises DataError: computed on the other rows, the metric
+    would be published under its name as something else (the expert-action probe on random
+    exploration). The planner refuses such a suite before any stage runs
+    (:func:`repbench.pipeline.plan.build_plan`).
     """
-    everything = np.arange(len(source))
     if rows == "all":
-        return everything, "all: " + " + ".join(source_names)
+        return np.arange(len(source)), "all: " + " + ".join(source_names)
     if rows in source_names:
         return np.flatnonzero(source == source_names.index(rows)), rows
-    return everything, f"all: {' + '.join(source_names)} (no {rows} rows stored)"
+    raise DataError(f"the latents hold no {rows} rows (only {' + '.join(source_names)}), which "
+                    f"this metric is computed on; give the suite {rows} data "
+                    f"(dataset.{rows}_episodes > 0) or drop the metric")
 
 
 def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
@@ -239,16 +248,41 @@ def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
         arrays = {k: f[k] for k in f.files}
     names = [str(n) for n in arrays.get("source_names", art.read_json().get("sources", []))]
     source = arrays.get("source", np.zeros(len(arrays["z"]), dtype=np.int64))
-    idx, rows_used = metric_rows(cfg.get("rows", getattr(fn, "rows", "all")), source, names)
+    who = f"metric {cfg['metric']!r} of encoder {_encoder_of(spec)!r}"
+    try:
+        idx, rows_used = metric_rows(cfg.get("rows", getattr(fn, "rows", "all")), source, names)
+    except DataError as exc:
+        raise DataError(f"{who}: {exc}") from None
     extra = {k: arrays[k][idx] for k in getattr(fn, "extra_inputs", ()) if k in arrays}
     start = time.time()
     result = fn(arrays["z"][idx], arrays["z_true"][idx], arrays["episode"][idx],
                 np.random.default_rng(cfg["seed"]), **extra, **cfg["params"])
+    _check_finite(result, who)
     out = result.to_dict()
     out["time_s"] = time.time() - start
     out["rows"] = rows_used
     out["n_rows"] = int(idx.size)
     w.write_json(out)
+
+
+def _encoder_of(spec: StageSpec) -> str:
+    """The name of the encoder a metric stage scores (from its record, else its label)."""
+    enc = (spec.record or {}).get("encoder") or {}
+    return str(enc.get("name") or spec.label.rpartition(" × ")[2] or "?")
+
+
+def _check_finite(result: Any, who: str) -> None:
+    """A metric's value must be a finite number: NaN or infinity is not a score to publish (it
+    was stored as null, counted as computed, and broke every leaderboard of the store)."""
+    value = getattr(result, "value", None)
+    try:
+        finite = math.isfinite(float(value))
+    except (TypeError, ValueError):
+        finite = False
+    if not finite:
+        raise DataError(f"{who} returned the value {value!r}, not a finite number, so it is not "
+                        "stored; fix the metric (return a finite value, or raise an error "
+                        "saying why it has none)")
 
 
 def _run_rl(spec: StageSpec, store: Store, w: Any) -> None:
@@ -371,12 +405,60 @@ def _compute(spec: StageSpec, store: Store) -> dict[str, Any]:
         if spec.cost_group:  # a later run's time-left estimate reads it (StageTimes)
             writer.extra_meta["cost_group"] = spec.cost_group
         cpu = time.process_time()
-        _IMPLEMENTATIONS[spec.kind](spec, store, writer)
+        try:
+            _IMPLEMENTATIONS[spec.kind](spec, store, writer)
+        except SystemExit as exc:  # a plugin's sys.exit: this stage failed, the run goes on
+            if interrupted:
+                raise KeyboardInterrupt(f"stage {spec.label or key} was interrupted") from None
+            raise PluginExitError(_exit_message(spec, exc)) from None
         if spec.record is not None:
             _write_record(spec, store, writer, time.time() - start, time.process_time() - cpu)
         if interrupted:
             raise KeyboardInterrupt(f"stage {spec.label or key} was interrupted")
     return {"key": key, "status": "done", "seconds": time.time() - start}
+
+
+#: The plugin a stage kind calls (the name :func:`_exit_message` gives it).
+_PLUGIN_OF = {DATASET: "task", FULL_STATE: "agent", ENCODER: "encoder", LATENTS: "encoder",
+              METRIC: "metric", RL: "agent", DIAGNOSTICS: "metric"}
+
+
+class PluginExitError(RepbenchError):
+    """Plugin code called ``sys.exit`` (raised ``SystemExit``) inside a stage: the stage fails
+    like any other; without this the whole run would end, silently, with the plugin's code."""
+
+
+def _exit_message(spec: StageSpec, exc: SystemExit) -> str:
+    """One line: the stage, which plugin function called ``sys.exit`` with what, and the fix."""
+    plugin = _PLUGIN_OF.get(spec.kind, "plugin")
+    frame = _plugin_frame(exc)
+    if frame is None:
+        who = f"the {plugin}"
+    elif frame.f_code.co_name == "<module>":
+        who = f"the {plugin}'s file {Path(frame.f_code.co_filename).name}, on import,"
+    else:
+        who = f"the {plugin}'s {frame.f_code.co_name}"
+    return (f"stage {spec.label or spec.kind + '/' + spec.key}: {who} called "
+            f"sys.exit({exc.code!r}); a plugin must raise an exception instead of exiting the "
+            "process")
+
+
+def _plugin_frame(exc: BaseException) -> FrameType | None:
+    """The first frame of ``exc``'s traceback below this module's last one that is not
+    repbench's own code (nor Python's import machinery): the plugin function that exited."""
+    frames = []
+    tb = exc.__traceback__
+    while tb is not None:
+        frames.append(tb.tb_frame)
+        tb = tb.tb_next
+    here = [i for i, f in enumerate(frames) if f.f_code.co_filename == __file__]
+    package = Path(__file__).resolve().parents[1]
+    for frame in frames[(here[-1] + 1 if here else 0):]:
+        name = frame.f_code.co_filename
+        if name.startswith("<") or Path(name).resolve().is_relative_to(package):
+            continue
+        return frame
+    return None
 
 
 def _write_record(spec: StageSpec, store: Store, w: Any, wall_s: float, cpu_s: float) -> None:
