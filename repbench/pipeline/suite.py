@@ -25,6 +25,7 @@ not converted; RL seeds are distinct and non-negative; step budgets are at most
 
 from __future__ import annotations
 
+import codecs
 import re
 from collections.abc import Sequence
 from importlib import resources
@@ -51,15 +52,17 @@ BUILTIN_SUITES = ("smoke", "quick", "paper")
 #: steps is years of SAC on one machine; a larger value is a typo.
 MAX_TRAIN_STEPS = 10**9
 #: A suite's name is a folder name (its board goes to ``leaderboards/<name>``): letters, digits,
-#: ``_``, ``-`` and ``.``, with no ``..`` (which would climb out of ``leaderboards/``).
+#: ``_``, ``-`` and ``.``, with no ``..`` (which would climb out of ``leaderboards/``) and not
+#: ``.`` alone (which is ``leaderboards/`` itself).
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_.-]+$")
 
 
 def check_suite_name(name: str) -> str:
     """``name`` if it is a valid suite name (:data:`SUITE_NAME`), else ValueError saying why."""
-    if not SUITE_NAME.match(name) or ".." in name:
+    if not SUITE_NAME.match(name) or ".." in name or name == ".":
         raise ValueError(f"suite name {name!r} must be a folder name: letters, digits, '_', '-' "
-                         "and '.', without '..' (its board goes to leaderboards/<name>); "
+                         "and '.', not '.' and without '..' (its board goes to "
+                         "leaderboards/<name>); "
                          "rename it, e.g. name = \"my_suite\"")
     return name
 
@@ -283,6 +286,8 @@ def _read_suite_text(name_or_path: str | Path) -> tuple[str, str]:
     except OSError as exc:
         raise ConfigError(f"suite file {path} cannot be read ({exc.strerror or exc}); check its "
                           "permissions") from None
+    if raw.startswith(codecs.BOM_UTF8):  # Windows editors (Notepad) save UTF-8 with one
+        raw = raw[len(codecs.BOM_UTF8):]
     try:
         return raw.decode("utf-8"), str(path)
     except UnicodeDecodeError as exc:
