@@ -104,6 +104,24 @@ def _manifest_dirs(manifest: Path) -> list[Path]:
     return paths
 
 
+def check_not_reference_board(out_dir: Path, ref_dirs: Sequence[Path], suite_name: str,
+                              encoder: str) -> None:
+    """Raise ConfigError when the leaderboard folder ``out_dir`` would overwrite the reference
+    board: it is one of the reference records folders ``ref_dirs`` or lies inside one, it holds
+    one (``leaderboards/quick`` for ``leaderboards/quick/records``; an ancestor of it), or it lies
+    inside the board that holds one (``leaderboards/quick/door``). Writing there would replace
+    the reference board's pages and add ``encoder``'s records to the reference records."""
+    out = out_dir.expanduser().resolve()
+    for ref in ref_dirs:
+        ref = ref.expanduser().resolve()
+        board = ref.parent if ref.name == "records" else ref  # a board keeps records/ inside
+        if out.is_relative_to(board) or ref.is_relative_to(out):
+            raise ConfigError(
+                f"--out {out_dir} would write over the reference board of suite {suite_name} "
+                f"(its records are in {ref}) and add {encoder} to its reference records; choose "
+                f"another --out, e.g. leaderboards/{suite_name}-{_folder_name(encoder)}")
+
+
 def _folder_name(encoder: str) -> str:
     """A folder name for ``encoder`` (``my_encoder.py:MyVAE`` → ``my_encoder-MyVAE``)."""
     if not is_reference(encoder):
@@ -133,6 +151,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     out_dir = check_out_dir(out if out is not None
                             else Path("leaderboards") / f"{base.name}-{_folder_name(encoder)}")
     ref_dirs = reference_dirs(base.name, reference)
+    check_not_reference_board(out_dir, ref_dirs, base.name, encoder)
     dropped: list[str] = []  # reference or new records left out (edited, truncated ...)
     reference_records = []
     for ref_dir in ref_dirs:
