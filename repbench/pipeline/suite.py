@@ -16,7 +16,8 @@ suite file needs only what differs::
 Defaults: ``agents = ["sac"]``, ``seeds = [0, 1, 2]``; ``[dataset]`` 25 × 300 random steps,
 10 × 100 on-policy steps, seed 0; ``[encoder_training]`` latent_dim 16, 3 epochs, batch 64,
 seed 0; ``[rl]`` 6000 train steps, 10 evaluation episodes, 5 curve points, 20 000 steps for the
-full-state agent; ``[metric_settings]`` 100 bootstrap resamples, seed 0.
+full-state agent; ``[metric_settings]`` 100 bootstrap resamples (at least
+:data:`MIN_BOOTSTRAP`), seed 0.
 
 Values are checked strictly, as TOML writes them: ``train_steps = "60"`` (a string) is refused,
 not converted; RL seeds are distinct and non-negative; step budgets are at most
@@ -55,6 +56,23 @@ MAX_TRAIN_STEPS = 10**9
 #: ``_``, ``-`` and ``.``, with no ``..`` (which would climb out of ``leaderboards/``) and not
 #: ``.`` alone (which is ``leaderboards/`` itself).
 SUITE_NAME = re.compile(r"^[A-Za-z0-9_.-]+$")
+#: The fewest bootstrap resamples a metric's 95 % interval may come from (``[metric_settings]
+#: bootstrap``, a metric's ``n_bootstrap``): the smoke suite's 20. The percentile interval of B
+#: resamples leaves out its own value when at most one resample falls on one side of it: for a
+#: symmetric spread a chance of at most 2 (B + 1) / 2^B, 2 % at B = 10, 4·10⁻⁵ at B = 20; B = 1
+#: gives the interval [x, x] of its one resample.
+MIN_BOOTSTRAP = 20
+
+
+def check_bootstrap(n: int, key: str = "", allow_none: bool = False) -> int:
+    """``n`` if it is enough bootstrap resamples (:data:`MIN_BOOTSTRAP`; with ``allow_none``
+    also 0, no interval), else ValueError (naming ``key`` and ``n`` when given a key)."""
+    if n >= MIN_BOOTSTRAP or (allow_none and n == 0):
+        return n
+    zero = " (or 0 for no interval)" if allow_none else ""
+    raise ValueError(f"{f'{key} = {n}: ' if key else ''}too few bootstrap resamples for a 95 % "
+                     "interval (it would often leave out its own value); use at least "
+                     f"{MIN_BOOTSTRAP}{zero}, e.g. 100 as quick does")
 
 
 def check_suite_name(name: str) -> str:
@@ -164,8 +182,14 @@ RLOverride = _override_model(RLConfig)
 class MetricsConfig(_Strict):
     """Which data the metrics are computed on."""
 
-    bootstrap: PositiveInt = Field(default=100, description="bootstrap resamples for CIs")
+    bootstrap: PositiveInt = Field(default=100, description=(
+        f"bootstrap resamples for CIs (at least {MIN_BOOTSTRAP})"))
     seed: int = Field(default=0, description="metric seed")
+
+    @field_validator("bootstrap")
+    @classmethod
+    def _enough_resamples(cls, v: int) -> int:
+        return check_bootstrap(v)
 
 
 #: The suite tables keyed by task name (``[task_params.<task>]`` ...): each names only listed tasks.
@@ -220,6 +244,16 @@ class Suite(_Strict):
     @classmethod
     def _folder_name(cls, v: str) -> str:
         return check_suite_name(v)
+
+    @field_validator("metric_params")
+    @classmethod
+    def _enough_metric_resamples(cls, v: dict[str, dict[str, Any]]
+                                 ) -> dict[str, dict[str, Any]]:
+        for name, params in v.items():
+            n = params.get("n_bootstrap")
+            if isinstance(n, int) and not isinstance(n, bool):
+                check_bootstrap(n, f"metric_params.{name}.n_bootstrap", allow_none=True)
+        return v
 
     @field_validator("tasks", "encoders", "metrics", "agents", "seeds")
     @classmethod

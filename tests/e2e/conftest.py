@@ -37,7 +37,7 @@ eval_episodes = 2
 curve_points = 2
 full_state_train_steps = 200
 [metric_settings]
-bootstrap = 10
+bootstrap = 20
 [task_params."PegInHole-v0"]
 horizon = 30
 [agent_params.sac]

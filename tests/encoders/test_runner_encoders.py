@@ -35,7 +35,7 @@ eval_episodes = 1
 curve_points = 1
 full_state_train_steps = 60
 [metric_settings]
-bootstrap = 5
+bootstrap = 20
 [task_params."ToyReach-v0"]
 horizon = 12
 [agent_params.sac]

@@ -98,7 +98,7 @@ def test_records_docstrings_and_stale_versions(plugin, suite_file: Path, tmp_pat
     assert metric["schema"] == SCHEMA and metric["schema_version"] == SCHEMA_VERSION
     assert metric["task"] == {"name": "ToyReach-v0", "version": 0, "params": {"horizon": 20}}
     assert metric["encoder"] == {"name": "docenc", "version": 0, "params": {"latent_dim": 3}}
-    assert metric["metric"]["name"] == "ksg" and metric["metric"]["params"]["n_bootstrap"] == 5
+    assert metric["metric"]["name"] == "ksg" and metric["metric"]["params"]["n_bootstrap"] == 20
     assert {"value", "ci_low", "ci_high", "higher_is_better"} <= set(metric["values"])
     assert metric["seed"] == 0 and metric["data_checksums"]["random"]
     assert metric["library_versions"]["numpy"] and "wall_time_s" in metric["timings"]

@@ -40,7 +40,7 @@ eval_episodes = 2
 curve_points = 2
 full_state_train_steps = 150
 [metric_settings]
-bootstrap = 10
+bootstrap = 20
 [task_params."ToyReach-v0"]
 horizon = 25
 [agent_params.sac]

@@ -26,7 +26,7 @@ train_steps = 60
 eval_episodes = 1
 curve_points = 1
 [metric_settings]
-bootstrap = 5
+bootstrap = 20
 [task_params."ToyReach-v0"]
 horizon = 20
 [agent_params.sac]
