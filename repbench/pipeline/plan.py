@@ -146,6 +146,7 @@ def _plan_task(suite: Suite, task_name: str) -> TaskPlan:
                 "task_version": plugin_version(task_cls)}
     task_part = plugin_part(task_name, task_cls, task_params)
     ds = suite.dataset_for(task_name)
+    _check_on_policy_metrics(suite, task_name, ds.on_policy_episodes)
     rl = suite.rl_for(task_name)
     random_data = {"episodes": ds.random_episodes, "steps": ds.random_steps, "seed": ds.seed}
     data: dict[str, Any] = {"random": random_data, "on_policy": None, "full_state": None}
@@ -297,6 +298,24 @@ def _metric_params(suite: Suite, name: str) -> dict[str, Any]:
         raise ConfigError(f"suite {suite.source or suite.name}, field metric_params.{name}: "
                           f"{exc}") from None
     return params
+
+
+def _check_on_policy_metrics(suite: Suite, task_name: str, on_policy_episodes: int) -> None:
+    """A metric declared ``rows="on_policy"`` (the expert-action probe, smoothness) is computed
+    on the on-policy data only; a task without any cannot have it (the metric stage would
+    refuse it too, :func:`repbench.pipeline.stages.metric_rows`)."""
+    if on_policy_episodes > 0:
+        return
+    needy = [m for m in suite.metrics if getattr(metrics.get(m), "rows", "all") == "on_policy"]
+    if needy:
+        override = suite.task_dataset.get(task_name)
+        where = (f"task_dataset.{task_name}" if override is not None
+                 and "on_policy_episodes" in override.model_fields_set else "dataset")
+        raise ConfigError(
+            f"suite {suite.source or suite.name}: {', '.join(map(repr, needy))} "
+            f"{'is' if len(needy) == 1 else 'are'} computed on on-policy data, but "
+            f"{where}.on_policy_episodes = 0 for {task_name}; collect some (e.g. 10) or drop "
+            f"{'it' if len(needy) == 1 else 'them'} from metrics")
 
 
 def _check_privileged(suite: Suite, task_name: str, task_cls: type,

@@ -25,8 +25,7 @@ import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
-from repbench.errors import DataError
-from repbench.errors import RepbenchError
+from repbench.errors import DataError, RepbenchError
 from repbench.pipeline.diskfull import stop_when_full
 from repbench.pipeline.records import RECORD_FILE, make_record, write_record
 from repbench.pipeline.store import Store, file_sha256, stage_key
