@@ -26,6 +26,7 @@ from repbench.pipeline.records import (
     inspect_record,
     mixed_encoder_weights,
     plugin_version,
+    value_problem,
     versions_of,
 )
 from repbench.pipeline.store import (
@@ -189,6 +190,10 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
                   installed: Mapping[tuple[str, str], int] | None = None) -> Results:
     """The leaderboard's rows from ``records`` (a pure function of its arguments).
 
+    A metric record whose value cannot be published (not a finite number, or outside its own
+    interval: :func:`repbench.pipeline.records.value_problem`) is left out with a warning
+    naming its file, in the log and on the page, like a record that fails its checksum.
+
     ``suite`` (optional) adds the suite's description and settings to the provenance;
     ``installed`` (:func:`installed_versions`) marks records of older plugin versions stale.
     """
@@ -196,6 +201,10 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     res.missing = list(missing)
     installed = installed or {}
     records = sorted(records, key=_order_by(suite))
+    for problem in filter(None, map(value_problem, records)):
+        log.warning("%s", problem)
+        res.warnings.append(problem)
+    records = [r for r in records if value_problem(r) is None]
     res.records = list(records)
     for warning in mixed_encoder_weights(records):
         log.warning("%s", warning)
@@ -328,13 +337,18 @@ def _encoder_figure(record: Mapping[str, Any], stem: str, label: str, encoder: s
 
 def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Path]:
     """Write ``records`` as ``folder/<kind>/<task>.<encoder>.<metric|agent>.s<seed>-<id>.json``
-    (replacing the folder's earlier records): the shippable form of a leaderboard's results."""
+    (replacing the folder's earlier records): the shippable form of a leaderboard's results.
+
+    Only sound repbench records (:func:`~repbench.pipeline.records.inspect_record`) are replaced:
+    any other file in ``folder`` (a user's notes, an analysis, an edited or damaged record) is
+    not repbench's to delete and stays where it is."""
     from repbench.pipeline.records import write_record
 
     folder = Path(folder)
     if folder.is_dir():
         for old in folder.rglob("*.json"):
-            old.unlink(missing_ok=True)
+            if inspect_record(old)[0] is not None:
+                old.unlink(missing_ok=True)
     paths = []
     for r in records:
         parts = [r["task"]["name"], *((r.get(p) or {}).get("name") for p in PLUGIN_PARTS[1:])]

@@ -167,6 +167,37 @@ def _checksum_matches(record: Mapping[str, Any]) -> bool:
         return False
 
 
+def value_problem(record: Mapping[str, Any]) -> str | None:
+    """Why a metric record's value cannot be published, as a one-line warning naming its file
+    (None: it can, or the record is no metric's): a value that is not a finite number (an older
+    repbench stored a metric's NaN as null) or one outside the record's own interval
+    (``ci_low``..``ci_high``: an edited record, or a metric whose interval is not of its value).
+    The readers of records into a board leave such a record out
+    (:func:`repbench.analysis.results.build_results`)."""
+    if record.get("kind") != "metric":
+        return None
+    values = record.get("values") or {}
+    where = record.get("_path") or f"of metric {(record.get('metric') or {}).get('name')}"
+    what = (f"({(record.get('metric') or {}).get('name')} of "
+            f"{(record.get('encoder') or {}).get('name')} on "
+            f"{(record.get('task') or {}).get('name')})")
+    value, low, high = values.get("value"), values.get("ci_low"), values.get("ci_high")
+    if not _finite(value):
+        return f"record {where} {what} has no finite value ({value!r}): left out; {RERUN}"
+    if _finite(low) and _finite(high):
+        tol = 1e-9 * max(1.0, abs(float(low)), abs(float(high)))
+        if not float(low) - tol <= float(value) <= float(high) + tol:
+            return (f"record {where} {what} has the value {float(value):.6g} outside its own "
+                    f"interval [{float(low):.6g}, {float(high):.6g}] (edited, or the metric's "
+                    f"interval is wrong): left out; {RERUN}")
+    return None
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)
+
+
 def read_record(path: str | Path) -> dict[str, Any] | None:
     """The record in ``path``, or None if it is not a sound repbench record
     (:func:`inspect_record` says why)."""
