@@ -226,6 +226,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _main(argv: list[str] | None) -> None:
+    args = sys.argv[1:] if argv is None else list(argv)
     try:
         app(args=argv, prog_name="repbench", standalone_mode=True)
     except RepbenchError as exc:
@@ -240,16 +241,27 @@ def _main(argv: list[str] | None) -> None:
                    "run the same command again", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        _interrupted()
+        _interrupted(args)
     except SystemExit as exc:  # typer turns Ctrl-C inside a command into a silent Exit(130)
         if _caused_by_ctrl_c(exc):
-            _interrupted()
+            _interrupted(args)
         raise
 
 
-def _interrupted() -> None:
-    typer.echo("repbench: interrupted; finished stages are kept in the store — run the "
-               "same command again to resume", err=True)
+#: What the one-line message of a Ctrl-C says after "repbench: interrupted", by command; the
+#: commands that run stages keep what they finished in the store.
+_INTERRUPTED = {
+    "run": "finished stages are kept in the store — run the same command again to resume",
+    "evaluate": "finished stages are kept in the store — run the same command again to resume",
+    "task preview": "no preview was written — run the same command again",
+}
+
+
+def _interrupted(args: list[str]) -> None:
+    words = [a for a in args if not a.startswith("-")][:2]
+    command = " ".join(words[:2]) if words[:1] == ["task"] else " ".join(words[:1])
+    note = _INTERRUPTED.get(command)
+    typer.echo("repbench: interrupted" + (f"; {note}" if note else ""), err=True)
     sys.exit(EXIT_TERMINATED if _terminated else EXIT_INTERRUPTED)
 
 

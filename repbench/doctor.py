@@ -43,6 +43,12 @@ RENDER_PACKAGES = ("libegl1", "libgl1", "libgl1-mesa-dri")
 BROWSER_PACKAGE = "chromium"
 
 
+def render_fix() -> str:
+    """What to do when MuJoCo cannot render offscreen (:func:`check_render` failed)."""
+    return ("headless rendering needs EGL (Debian/Ubuntu): "
+            f"{apt_install_line(RENDER_PACKAGES)}; and MUJOCO_GL=egl")
+
+
 def apt_install_line(packages: tuple[str, ...] | list[str], *, is_root: bool | None = None,
                      sudo: str | None = None) -> str:
     """The exact command that installs ``packages`` here: plain ``apt-get`` as root, through
@@ -86,8 +92,7 @@ def run_doctor(echo: Callable[[str], None] = print) -> bool:
     echo(f"render      {msg}")
     if not render_ok:
         ok = False
-        fixes.append("headless rendering needs EGL (Debian/Ubuntu): "
-                     f"{apt_install_line(RENDER_PACKAGES)}; and MUJOCO_GL=egl")
+        fixes.append(render_fix())
     import shutil
 
     browser = shutil.which(BROWSER_PACKAGE)

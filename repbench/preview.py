@@ -11,9 +11,14 @@ from pathlib import Path
 import numpy as np
 
 from repbench.dataset import FT, IMAGE
-from repbench.errors import ConfigError
+from repbench.errors import ConfigError, RepbenchError
 from repbench.pipeline.preflight import check_out_file
 from repbench.task import Task
+
+#: Most frames a contact sheet takes (``--frames``): 200 tiles are 34 rows of 6, a page of
+#: about 13 x 71 inches that matplotlib lays out in tens of seconds; beyond that the sheet is
+#: no longer something to look at, and 100000000 (a typo) meant a rollout of 400 million steps.
+MAX_PREVIEW_FRAMES = 200
 
 
 def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int = 0,
@@ -24,8 +29,11 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
     (N) of that step; the title gives the step index. Returns the written path.
 
     Raises:
-        ConfigError: before the rollout, for ``n_frames < 1``, a negative ``seed``, or an
-            ``out`` that cannot be written (a folder, an unwritable place, an unknown format).
+        ConfigError: before the rollout, for ``n_frames`` outside ``[1,``
+            :data:`MAX_PREVIEW_FRAMES` ``]``, a negative ``seed``, or an ``out`` that cannot be
+            written (a folder, an unwritable place, an unknown format); after it, when the
+            rollout failed because MuJoCo cannot render here (e.g. a bad ``MUJOCO_GL``), with
+            the fix ``repbench doctor`` gives.
     """
     import matplotlib
 
@@ -34,10 +42,16 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
 
     from repbench.report.figures import save_figure
 
-    _check_preview_args(out, n_frames, seed, steps)
+    out = _check_preview_args(out, n_frames, seed, steps)
     steps = steps or max(n_frames * 4, 40)
-    ds = task.collect("random", n_episodes=1, steps_per_episode=steps, seed=seed,
-                      progress=False)
+    try:
+        ds = task.collect("random", n_episodes=1, steps_per_episode=steps, seed=seed,
+                          progress=False)
+    except RepbenchError:
+        raise
+    except Exception as exc:
+        _explain_render_failure(task, exc)
+        raise
     idx = np.linspace(0, len(ds) - 1, n_frames).round().astype(int)
     images = ds.observations[IMAGE][idx]
     force = np.linalg.norm(ds.observations[FT][:, :3], axis=1)
@@ -68,15 +82,35 @@ def render_preview(task: Task, out: str | Path, *, n_frames: int = 24, seed: int
     return save_figure(fig, out, tight=False)
 
 
-def _check_preview_args(out: str | Path, n_frames: int, seed: int, steps: int | None) -> None:
-    """One-line ConfigErrors naming the option (as the CLI spells it) and the fix."""
+def _check_preview_args(out: str | Path, n_frames: int, seed: int, steps: int | None) -> Path:
+    """One-line ConfigErrors naming the option (as the CLI spells it) and the fix; returns the
+    file that will be written: ``out``, with ``.png`` added when it has no extension (what
+    matplotlib does)."""
     def integer(v: object) -> bool:
         return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
 
     if not integer(n_frames) or n_frames < 1:
         raise ConfigError(f"--frames must be a whole number >= 1, got {n_frames!r}")
+    if n_frames > MAX_PREVIEW_FRAMES:
+        raise ConfigError(f"--frames must be a whole number in [1, {MAX_PREVIEW_FRAMES}], got "
+                          f"{n_frames!r}; a contact sheet of more frames is no longer readable")
     if not integer(seed) or seed < 0:
         raise ConfigError(f"--seed must be a whole number >= 0, got {seed!r}")
     if steps is not None and (not integer(steps) or steps < 1):
         raise ConfigError(f"preview steps must be a whole number >= 1, got {steps!r}")
-    check_out_file(out)
+    path = Path(out).expanduser()
+    if str(out).strip() and not path.suffix and not path.is_dir():  # matplotlib adds .png
+        out = f"{out}.png"
+    return check_out_file(out)
+
+
+def _explain_render_failure(task: Task, exc: Exception) -> None:
+    """Raise a one-line ConfigError when ``exc`` (from the rollout) came from MuJoCo being
+    unable to render here: the same check and fix ``repbench doctor`` prints. Returns when
+    rendering works (``exc`` is something else)."""
+    from repbench.doctor import check_render, render_fix
+
+    ok, message = check_render()
+    if not ok:
+        raise ConfigError(f"cannot render {task.task_id}'s camera: {message}; {render_fix()}; "
+                          "`repbench doctor` checks the installation") from None
