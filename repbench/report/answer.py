@@ -47,9 +47,35 @@ def _verdict(verdict: Any, colors: dict[str, str]) -> str:
     return f"<b style='background:{colors.get(v, '')};padding:0 4px'>{html.escape(v)}</b>"
 
 
-def _metric_rows(claims: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> list[str]:
+def ceiling_rows(checks: pd.DataFrame | None) -> dict[tuple[str, str], dict[str, Any]]:
+    """(task, agent) → the noise-ceiling row of ``robustness.csv``
+    (:func:`repbench.analysis.noise_ceiling.ceiling_check`)."""
+    if checks is None or checks.empty:
+        return {}
+    out = {}
+    for r in checks.to_dict("records"):
+        name = str(r["check"])
+        if " returns rank the encoders reliably " in name:
+            agent, task = name.split(" returns rank the encoders reliably ")
+            out[(task, agent.lower())] = r
+    return out
+
+
+def _ceiling_cells(best: Any, ceiling: Any, fmt: Any) -> str:
+    if ceiling is None:
+        return "<td>–</td><td>–</td>"
+    share = float(best["value"]) / float(ceiling["value"]) if ceiling["value"] else math.nan
+    return (f"<td title='{html.escape(str(ceiling['detail']))}'>{_estimate(ceiling, fmt)}</td>"
+            f"<td data-v='{share}'>{share:.0%}</td>" if math.isfinite(share) else
+            f"<td>{_estimate(ceiling, fmt)}</td><td>–</td>")
+
+
+def _metric_rows(claims: pd.DataFrame, fmt: Any, colors: dict[str, str],
+                 ceilings: dict[tuple[str, str], dict[str, Any]] | None = None) -> list[str]:
     """One row per task × agent: the best metric over the learned encoders (ρ [95 %],
-    verdict), then each of the paper's metrics (ρ [95 %], verdict)."""
+    verdict), the noise ceiling and the share of it the best metric reaches, then each of
+    the paper's metrics (ρ [95 %], verdict)."""
+    ceilings = ceilings or {}
     rows = []
     for (task, agent), group in claims.groupby(["task", "agent"], sort=False):
         by_claim = {c: r for c, r in zip(group["claim"], group.to_dict("records"),
@@ -62,7 +88,8 @@ def _metric_rows(claims: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> list
                  f"<td class='txt'>{html.escape(str(agent))}</td>",
                  f"<td class='txt'><b>{html.escape(metric)}</b></td>",
                  f"<td data-v='{best['value']}'>{_estimate(best, fmt)}</td>",
-                 f"<td class='txt'>{_verdict(best['verdict'], colors)}</td>"]
+                 f"<td class='txt'>{_verdict(best['verdict'], colors)}</td>",
+                 _ceiling_cells(best, ceilings.get((str(task), str(agent))), fmt)]
         for _, claim in PAPER_METRICS:
             r = by_claim.get(claim)
             cells.append("<td>–</td>" if r is None else
@@ -164,8 +191,8 @@ def _return_matrix(encoders_df: pd.DataFrame, fmt: Any) -> list[str]:
 def answer_section(claims: pd.DataFrame | None, checks: pd.DataFrame | None,
                    encoders_df: pd.DataFrame, figures: dict[str, Path]) -> list[str]:
     """The page's first section, ``<section id="answer">``; empty before any correlation."""
-    rows = [] if claims is None or claims.empty else _metric_rows(claims, _fmt,
-                                                                    _VERDICT_COLORS)
+    rows = [] if claims is None or claims.empty else _metric_rows(
+        claims, _fmt, _VERDICT_COLORS, ceiling_rows(checks))
     if not rows:
         return []
     paper_heads = "".join(f"<th class='txt'>{name}</th>" for name, _ in PAPER_METRICS)
@@ -173,13 +200,17 @@ def answer_section(claims: pd.DataFrame | None, checks: pd.DataFrame | None,
            "<p class='note'>Which metric predicts RL return, per task and agent: the metric "
            "with the highest Spearman ρ between its value and the mean return <b>over the "
            "learned encoders</b>, with its 95% bootstrap interval and verdict (significant = "
-           "Holm-adjusted p &lt; 0.05 over every metric × agent test), then the paper's own "
+           "Holm-adjusted p &lt; 0.05 over every metric × agent test), the noise ceiling (no "
+           "metric can correlate with a 3-seed mean return above it: √ of the Spearman–Brown "
+           "reliability of the seeds' ranking) and the share of it the best metric reaches, "
+           "then the paper's own "
            "metrics (MI by MINE and KSG, regression error to the true state) as its claims, "
            "checked. Details: <a href='#claims-section'>claims</a>, <a href='#ranking-section'>"
            "the metric ranking</a>.</p>",
            "<table id='answer-metrics'><thead><tr><th class='txt'>task</th>"
            "<th class='txt'>agent</th><th class='txt'>best metric</th><th>ρ [95% CI]</th>"
-           f"<th class='txt'>verdict</th>{paper_heads}</tr></thead><tbody>"
+           "<th class='txt'>verdict</th><th>noise ceiling [95% CI]</th><th>of ceiling</th>"
+           f"{paper_heads}</tr></thead><tbody>"
            + "".join(rows) + "</tbody></table>"]
     if checks is not None and not checks.empty:
         out.extend(_checks_table(checks, _fmt, _VERDICT_COLORS))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -103,6 +104,7 @@ def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
     ranked per task × agent by the within-learned-encoders Spearman ρ, then the all-encoder ρ;
     and the leave-one-encoder-out predicted returns per (task, agent, metric)."""
     from repbench.analysis.correlation import metric_leaderboard
+    from repbench.analysis.noise_ceiling import add_ceiling_columns, ceilings
 
     families = _families(res)
     rows, preds = metric_leaderboard(res.metric_rows, res.rl_rows, families,
@@ -113,6 +115,8 @@ def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
         df = df.sort_values(["task", "agent", "spearman_learned", "spearman_all"],
                             ascending=[True, True, False, False],
                             na_position="last").reset_index(drop=True)
+        df = add_ceiling_columns(df, ceilings(res.rl_rows, families, n_bootstrap=n_bootstrap,
+                                              seed=seed))
     return df, preds
 
 
@@ -194,6 +198,7 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
     ``predictions``: pre-registered cross-task predictions (``predictions/<task>.csv``,
     :mod:`repbench.analysis.transfer`); each one whose task × agent has RL rows is scored.
     """
+    from repbench.analysis.noise_ceiling import ceiling_check, ceilings
     from repbench.analysis.robustness import check_results, robustness_table
     from repbench.analysis.transfer import score_predictions
     from repbench.report.families import encoder_families
@@ -213,6 +218,9 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
             check, table = score_predictions(pred, res.rl_rows)
             scored[check.check] = table
             checks.append(check)
+    checks += [ceiling_check(task, agent, out)
+               for (task, agent), out in ceilings(res.rl_rows, _families(res)).items()
+               if math.isfinite(out["r1_ci_low"])]
     table = robustness_table(checks)
     res.robustness = {"checks": table, "heldout": heldout, "longer_rl": list(longer_rows),
                       "other_agent_rl": list(other_rows), "predictions": scored}
