@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from repbench.errors import DataError
 from repbench.pipeline.plan import build_plan
 from repbench.pipeline.runner import run_suite
 from repbench.pipeline.stages import metric_rows
@@ -23,14 +24,15 @@ HELDOUT = (SUITE.replace('metrics = ["ksg", "regression", "coherence"]',
                     'encoders = ["oracle", "proprio_only"]'))
 
 
-def test_metric_rows_selects_on_policy_and_falls_back() -> None:
+def test_metric_rows_selects_on_policy_and_never_falls_back() -> None:
     source = np.array([0, 0, 1, 1, 1])
     idx, what = metric_rows("on_policy", source, ["heldout", "on_policy"])
     assert idx.tolist() == [2, 3, 4] and what == "on_policy"
     idx, what = metric_rows("all", source, ["heldout", "on_policy"])
     assert idx.tolist() == [0, 1, 2, 3, 4] and what == "all: heldout + on_policy"
-    idx, what = metric_rows("on_policy", np.zeros(3, int), ["random"])
-    assert idx.size == 3 and "no on_policy rows" in what
+    # without on-policy rows the metric is refused, not computed on the others (issue 56)
+    with pytest.raises(DataError, match="no on_policy rows"):
+        metric_rows("on_policy", np.zeros(3, int), ["random"])
 
 
 def test_plan_encodes_heldout_and_on_policy_data_only(tmp_path: Path) -> None:
