@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from repbench.errors import DataError, RepbenchError
 from repbench.task import action_vector
 from repbench_tasks.config import START_KINDS, PegInHoleConfig
 from repbench_tasks.rendering import WRIST_CAMERA, WristRenderer
@@ -45,6 +46,11 @@ TRUE_STATE_DIM = 2 * N_ARM + 2
 
 for _name in ("robosuite", "robosuite_logs"):
     logging.getLogger(_name).setLevel(logging.ERROR)
+
+
+class EnvironmentClosedError(RepbenchError, gym.error.ClosedEnvironmentError, RuntimeError):
+    """``step`` or ``reset`` of an environment after its ``close()`` (gymnasium's
+    ``ClosedEnvironmentError``, and a RuntimeError)."""
 
 
 class WristTaskEnv(gym.Env):
@@ -113,6 +119,7 @@ class WristTaskEnv(gym.Env):
         })
         self.action_space = spaces.Box(-1.0, 1.0, (3,), np.float32)
         self._t = 0
+        self._closed = False
         self._last_action = np.zeros(3, np.float32)
         self._image = np.zeros((size, size, 3), np.uint8)
         self._ft = np.zeros(6)
@@ -171,6 +178,7 @@ class WristTaskEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Start an episode; ``options`` are task-specific (see the subclass)."""
+        self._check_open("reset")
         super().reset(seed=seed)
         options = dict(options or {})
         self._configure(options)
@@ -201,9 +209,13 @@ class WristTaskEnv(gym.Env):
     def step(self, action: np.ndarray
              ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Move the tool point by ``action * action_scale`` (clipped to the workspace)."""
-        a = np.clip(action_vector(action, 3, f"{type(self).__name__}.step"), -1.0, 1.0)
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {action!r}")
+        self._check_open("step")
+        owner = f"{type(self).__name__}.step"
+        a = action_vector(action, 3, owner)
+        if not np.all(np.isfinite(a)):  # before clipping, which made an infinite action 1
+            raise DataError(f"{owner}: action must be finite, got {action!r}; actions are "
+                            "numbers in [-1, 1]")
+        a = np.clip(a, -1.0, 1.0)
         tip = self.tip_position()
         target = self._position_goal(tip, a)
         rot = self.data.site_xmat[self.sim.eef_site_id].reshape(3, 3)
@@ -229,11 +241,19 @@ class WristTaskEnv(gym.Env):
         return self._image.copy() if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:
+        self._closed = True
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
         if getattr(self, "sim", None) is not None:
             self.sim.close()
+
+    def _check_open(self, method: str) -> None:
+        if self._closed:
+            raise EnvironmentClosedError(
+                f"{type(self).__name__}.{method}: this environment is closed (its simulation "
+                "was released by close()); make a new environment (task.make_env() or "
+                "gymnasium.make)")
 
     # -- state -----------------------------------------------------------------------------------
     def tip_position(self) -> np.ndarray:
