@@ -20,7 +20,7 @@ import numpy as np
 from repbench.dataset import FT, IMAGE, PROPRIO, Dataset
 from repbench.errors import ConfigError
 from repbench.task import Policy, Task
-from repbench_tasks.config import off_grid_point
+from repbench_tasks.config import off_grid_point, whole_number
 
 #: Layout of every robosuite task's ``proprio``: joint positions (7), joint velocities (7),
 #: tool-point position (3), tool-point linear velocity (3).
@@ -157,7 +157,7 @@ class BoxConfigTask(RobosuiteTask):
         """``n`` fixed evaluation episodes: every grid configuration once (in order), then
         configurations off the grid (at least ``off_grid_distance`` from every grid point),
         each with its own reset seed ``EVAL_SEED_BASE + i``."""
-        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
+        if not whole_number(n) or n < 1:
             raise ConfigError(f"{self.task_id}: evaluation episodes n={n!r} must be a positive "
                               "int")
         cfg = self.config()

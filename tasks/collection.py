@@ -18,6 +18,7 @@ from tqdm.auto import tqdm
 
 from repbench.dataset import Dataset
 from repbench.errors import ConfigError
+from repbench_tasks.config import whole_number
 
 if TYPE_CHECKING:
     from repbench_tasks.env import WristTaskEnv
@@ -92,7 +93,7 @@ def check_collect_args(kind: str, n_episodes: Any, steps_per_episode: Any,
     if kind == "on_policy" and policy is None:
         raise ConfigError("collect('on_policy') needs a policy: a callable observation -> action")
     for name, v in (("n_episodes", n_episodes), ("steps_per_episode", steps_per_episode)):
-        if not isinstance(v, (int, np.integer)) or v < 1:
+        if not whole_number(v) or v < 1:
             raise ConfigError(f"collect: {name}={v!r} must be a positive integer")
 
 

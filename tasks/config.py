@@ -29,6 +29,12 @@ ROBOT_VIEWS = ("proprio", "tip")
 CONFIG_SAMPLING = ("grid", "off_grid")
 
 
+def whole_number(v: Any) -> bool:
+    """Whether ``v`` is an integer (Python's or numpy's) and not a bool: ``True`` is no step
+    count (the check the ToyReach test task makes)."""
+    return isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+
+
 def check_types(cfg: Any, bad: Callable[[str, str], ConfigError]) -> None:
     """Type checks of a task config's float/bool/pair fields (before any arithmetic)."""
     def number(v: Any) -> bool:
@@ -105,7 +111,7 @@ def check_box_config(cfg: Any, bad: Callable[[str, str], ConfigError],
     check_types(cfg, bad)
     for name in integers:
         v = getattr(cfg, name)
-        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+        if not whole_number(v) or v < 1:
             raise bad(name, "must be a positive integer")
     if cfg.grid_size > 50:
         raise bad("grid_size", "must be an integer in [1, 50] (5 by default)")
@@ -189,9 +195,9 @@ class PegInHoleConfig:
 
         check_types(self, bad)  # types first: "wide" for a float must name the field, not numpy
 
-        if not isinstance(self.horizon, (int, np.integer)) or self.horizon < 1:
+        if not whole_number(self.horizon) or self.horizon < 1:
             raise bad("horizon", "must be a positive integer number of steps")
-        if not isinstance(self.grid_size, (int, np.integer)) or not 1 <= self.grid_size <= 50:
+        if not whole_number(self.grid_size) or not 1 <= self.grid_size <= 50:
             raise bad("grid_size", "must be an integer in [1, 50] (the paper uses 5)")
         if not np.isfinite(self.grid_extent) or self.grid_extent < 0:
             raise bad("grid_extent", "must be a finite length >= 0 in metres")
@@ -225,7 +231,7 @@ class PegInHoleConfig:
         if self.peg_length - 0.02 < self.hole_depth + 0.03:
             raise bad("peg_length", f"must reach {self.hole_depth + 0.05:.3f} m (hole depth + "
                                     "5 cm) so the fingers clear the walls when inserted")
-        if not isinstance(self.image_size, (int, np.integer)) or not 8 <= self.image_size <= 512:
+        if not whole_number(self.image_size) or not 8 <= self.image_size <= 512:
             raise bad("image_size", "must be an integer in [8, 512] (the paper uses 64)")
         lo, hi = self.start_height
         if not 0 <= lo <= hi <= 0.25:

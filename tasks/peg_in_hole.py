@@ -14,7 +14,7 @@ import numpy as np
 from repbench.dataset import PROPRIO, TRUE_STATE, as_observation_batch
 from repbench.errors import ConfigError, DataError
 from repbench_tasks.base import EVAL_SEED_BASE, TIP_POSITION, TIP_VELOCITY, RobosuiteTask
-from repbench_tasks.config import TABLE_TOP_Z, PegInHoleConfig
+from repbench_tasks.config import TABLE_TOP_Z, PegInHoleConfig, whole_number
 
 __all__ = ["EVAL_HOLE_SEED", "EVAL_SEED_BASE", "GYM_ID", "HOLE_XY", "TIP_POSITION",
            "TIP_VELOCITY", "PegInHoleTask"]
@@ -71,7 +71,7 @@ class PegInHoleTask(RobosuiteTask):
         """``n`` fixed evaluation episodes: every grid position once (in order), then hole
         positions off the grid (uniform in the grid's square, at least 1 cm from every grid
         position), each with its own reset seed. The same for every encoder and agent."""
-        if not isinstance(n, (int, np.integer)) or n < 1:
+        if not whole_number(n) or n < 1:
             raise ConfigError(f"PegInHole-v0: evaluation episodes n={n!r} must be a positive int")
         cfg = self.config()
         grid = cfg.grid_positions()
