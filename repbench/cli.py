@@ -6,6 +6,7 @@ exit with code 2; a traceback means a bug in repbench or a plugin.
 
 from __future__ import annotations
 
+import inspect
 import os
 import signal
 import sys
@@ -68,8 +69,10 @@ def list_plugins(
 
 @app.command()
 def doctor() -> None:
-    """Check the installation: library versions, rendering backend, a real 64×64 offscreen
-    render, CPU/GPU, and what to fix."""
+    """Check the installation and say what to fix.
+
+    Library versions, the rendering backend, a real 64×64 offscreen render, CPU/GPU.
+    """
     from repbench.doctor import run_doctor
 
     ok = run_doctor(echo=typer.echo)
@@ -96,8 +99,11 @@ def run(
         "--task", help="Only this task of the suite (repeat for several; default: all). "
         "Leaderboards go to leaderboards/<suite>-<task> unless --out says otherwise.")] = None,
 ) -> None:
-    """Run a suite: datasets → encoders → latents → metrics → RL → correlations →
-    leaderboards. Finished stages are reused from the store, so an interrupted run resumes."""
+    """Run a suite and write its leaderboards.
+
+    Datasets → encoders → latents → metrics → RL → correlations → leaderboards. Finished
+    stages are reused from the store, so an interrupted run resumes.
+    """
     from repbench.pipeline.runner import run_suite
 
     result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
@@ -167,8 +173,11 @@ def evaluate(
         "--task", help="Only this task of the suite (repeat for several; default: all of "
         "them, e.g. quick's PegInHole-v0, SurfacePress-v0 and Door-v0).")] = None,
 ) -> None:
-    """Evaluate one encoder against a suite's reference records: compute only its stages,
-    merge, and write a leaderboard with it highlighted."""
+    """Evaluate one encoder against a suite's reference records.
+
+    Computes only its stages, merges them with the reference records, and writes a
+    leaderboard with it highlighted.
+    """
     from repbench.pipeline.evaluate import evaluate_encoder
 
     result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store, out=out,
@@ -187,12 +196,28 @@ def task_preview(
     frames: Annotated[int, typer.Option(help="Number of frames.")] = 24,
     seed: Annotated[int, typer.Option(help="Rollout seed.")] = 0,
 ) -> None:
-    """Contact sheet of wrist-camera frames from one rollout, force magnitude beside each."""
+    """Contact sheet of wrist-camera frames from one rollout, force magnitude beside each.
+
+    At most 200 frames (--frames); an --out without an extension gets .png.
+    """
     from repbench.preview import render_preview
     from repbench.registry import tasks
 
     path = render_preview(tasks.get(task)(), out, n_frames=frames, seed=seed)
     typer.echo(f"preview written to {path}")
+
+
+def _unwrapped(doc: str) -> str:
+    """A docstring as a command's help: its paragraphs kept, the lines of each joined, so the
+    terminal wraps them at its width (typer's rich help kept every line break of the
+    docstring: "a real 64×64 offscreen" / "render, CPU/GPU" at 80 columns)."""
+    return "\n\n".join(" ".join(p.split()) for p in inspect.cleandoc(doc).split("\n\n"))
+
+
+for _app in (app, task_app):
+    for _info in _app.registered_commands:
+        if _info.help is None and _info.callback is not None and _info.callback.__doc__:
+            _info.help = _unwrapped(_info.callback.__doc__)
 
 
 #: Exit code of a run stopped by Ctrl-C (128 + SIGINT) and by SIGTERM (128 + SIGTERM), as a
