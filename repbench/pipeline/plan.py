@@ -303,7 +303,7 @@ def _metric_params(suite: Suite, name: str) -> dict[str, Any]:
 def _check_on_policy_metrics(suite: Suite, task_name: str, on_policy_episodes: int) -> None:
     """A metric declared ``rows="on_policy"`` (the expert-action probe, smoothness) is computed
     on the on-policy data only; a task without any cannot have it (the metric stage would
-    refuse it too, :func:`repbench.pipeline.stages.metric_rows`)."""
+    refuse it too, :func:`repbench.latent_metrics.metric_rows`)."""
     if on_policy_episodes > 0:
         return
     needy = [m for m in suite.metrics if getattr(metrics.get(m), "rows", "all") == "on_policy"]

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import signal
 import threading
 import time
@@ -25,7 +24,8 @@ import numpy as np
 
 from repbench.dataset import Dataset
 from repbench.devices import torch_threads as limit_threads
-from repbench.errors import DataError, RepbenchError
+from repbench.errors import RepbenchError
+from repbench.latent_metrics import compute_on_latents, metric_rows  # noqa: F401 (tests import it here)
 from repbench.pipeline.diskfull import stop_when_full
 from repbench.pipeline.records import RECORD_FILE, make_record, write_record
 from repbench.pipeline.store import Store, file_sha256, stage_key
@@ -219,25 +219,6 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
                   "arrays": sorted(arrays), **notes})
 
 
-def metric_rows(rows: str, source: np.ndarray, source_names: list[str]
-                ) -> tuple[np.ndarray, str]:
-    """Row indices a metric declared with ``rows`` is computed on, and a description.
-
-    ``"on_policy"`` selects the rows of the on-policy dataset. When the latents have none (a
-    suite without on-policy data) it raises DataError: computed on the other rows, the metric
-    would be published under its name as something else (the expert-action probe on random
-    exploration). The planner refuses such a suite before any stage runs
-    (:func:`repbench.pipeline.plan.build_plan`).
-    """
-    if rows == "all":
-        return np.arange(len(source)), "all: " + " + ".join(source_names)
-    if rows in source_names:
-        return np.flatnonzero(source == source_names.index(rows)), rows
-    raise DataError(f"the latents hold no {rows} rows (only {' + '.join(source_names)}), which "
-                    f"this metric is computed on; give the suite {rows} data "
-                    f"(dataset.{rows}_episodes > 0) or drop the metric")
-
-
 def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
     cfg = spec.config
     art = store.get(LATENTS, spec.inputs["latents"][1])
@@ -245,43 +226,16 @@ def _run_metric(spec: StageSpec, store: Store, w: Any) -> None:
     fn = metrics.get(cfg["metric"])
     with np.load(art.file("latents.npz")) as f:
         arrays = {k: f[k] for k in f.files}
-    names = [str(n) for n in arrays.get("source_names", art.read_json().get("sources", []))]
-    source = arrays.get("source", np.zeros(len(arrays["z"]), dtype=np.int64))
-    who = f"metric {cfg['metric']!r} of encoder {_encoder_of(spec)!r}"
-    try:
-        idx, rows_used = metric_rows(cfg.get("rows", getattr(fn, "rows", "all")), source, names)
-    except DataError as exc:
-        raise DataError(f"{who}: {exc}") from None
-    extra = {k: arrays[k][idx] for k in getattr(fn, "extra_inputs", ()) if k in arrays}
-    start = time.time()
-    result = fn(arrays["z"][idx], arrays["z_true"][idx], arrays["episode"][idx],
-                np.random.default_rng(cfg["seed"]), **extra, **cfg["params"])
-    _check_finite(result, who)
-    out = result.to_dict()
-    out["time_s"] = time.time() - start
-    out["rows"] = rows_used
-    out["n_rows"] = int(idx.size)
-    w.write_json(out)
+    arrays.setdefault("source_names", np.array(art.read_json().get("sources", [])))
+    w.write_json(compute_on_latents(
+        fn, arrays, seed=cfg["seed"], params=cfg["params"], rows=cfg.get("rows"),
+        who=f"metric {cfg['metric']!r} of encoder {_encoder_of(spec)!r}"))
 
 
 def _encoder_of(spec: StageSpec) -> str:
     """The name of the encoder a metric stage scores (from its record, else its label)."""
     enc = (spec.record or {}).get("encoder") or {}
     return str(enc.get("name") or spec.label.rpartition(" × ")[2] or "?")
-
-
-def _check_finite(result: Any, who: str) -> None:
-    """A metric's value must be a finite number: NaN or infinity is not a score to publish (it
-    was stored as null, counted as computed, and broke every leaderboard of the store)."""
-    value = getattr(result, "value", None)
-    try:
-        finite = math.isfinite(float(value))
-    except (TypeError, ValueError):
-        finite = False
-    if not finite:
-        raise DataError(f"{who} returned the value {value!r}, not a finite number, so it is not "
-                        "stored; fix the metric (return a finite value, or raise an error "
-                        "saying why it has none)")
 
 
 def _run_rl(spec: StageSpec, store: Store, w: Any) -> None:
