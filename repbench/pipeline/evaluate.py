@@ -188,7 +188,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
                                  if s.kind in ("encoder", "metric", "rl")
                                  and i not in {r["identity"] for r in ours}])
     res.highlight = [encoder]
-    res.warnings = [*dropped, *warnings]
+    res.warnings = [*dropped, *warnings, *res.warnings]  # and those build_results found
     res.provenance["evaluated"] = {"encoder": encoder, "metrics_only": metrics_only,
                                    "reference_records": ", ".join(map(str, ref_dirs)),
                                    "n_reference_records": len({r["identity"]

@@ -15,6 +15,7 @@ import pytest
 
 import repbench
 from repbench.errors import ConfigError, DataError
+from repbench.pipeline.evaluate import evaluate_encoder
 from repbench.pipeline.plan import build_plan
 from repbench.pipeline.records import CHECKSUM, record_checksum
 from repbench.pipeline.runner import rebuild_leaderboards, run_suite
@@ -222,3 +223,18 @@ def test_a_value_outside_its_own_interval_is_left_off_by_name(
     assert edited.name in (tmp_path / "out" / "index.html").read_text()
     # ... and the board's own records do not carry it on
     assert len(list((tmp_path / "out" / "records").rglob("*.json"))) == 12 - 1
+
+
+def test_evaluate_shows_a_reference_record_it_left_out(finished: tuple[Path, Path],
+                                                       tmp_path: Path) -> None:
+    suite, lb = finished
+    folder = tmp_path / "reference"
+    shutil.copytree(lb / "records", folder)
+    edited = _metric_record(folder, "oracle", "ksg")
+    r = json.loads(edited.read_text())
+    _edit_value(edited, r["values"]["ci_high"] + 1.0)
+    result = evaluate_encoder("proprio_only", suite, store=tmp_path / "store",
+                              out=tmp_path / "out", reference=folder, workers=1, progress=False)
+    said = [w for w in result.results.warnings if str(edited) in w]
+    assert len(said) == 1 and "outside its own interval" in said[0]
+    assert edited.name in (tmp_path / "out" / "index.html").read_text()
