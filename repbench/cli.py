@@ -232,6 +232,84 @@ def evaluate(
         raise typer.Exit(1)
 
 
+@app.command("score-metric")
+def score_metric(
+    metric: Annotated[str, typer.Argument(help="Metric to score: a registered name, or "
+                                          "path/to/file.py:fn, or module:fn.")],
+    suite: Annotated[str, typer.Option("--suite", "-s", help="Suite whose shipped latents "
+                                       "and RL returns to score against.")] = "quick",
+    task: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
+        "--task", help="Only this task (repeat for several; default: every task with shipped "
+        "latents).")] = None,
+    out: Annotated[Optional[str], typer.Option(  # noqa: UP045
+        "--out", help="Folder for its row, every metric's rows and its figure (default: "
+        "leaderboards/<suite>-metric-<metric>).")] = None,
+    reference: Annotated[Optional[list[Path]], typer.Option(  # noqa: UP045
+        "--reference", help="Folder of reference records, repeat for several (default: the "
+        "suite's, as for evaluate).")] = None,
+    latents: Annotated[Optional[Path], typer.Option(  # noqa: UP045
+        "--latents", help="Folder of shipped latents (default: "
+        "leaderboards/<suite>/latents).")] = None,
+    lower_is_better: Annotated[bool, typer.Option(
+        "--lower-is-better/--higher-is-better", help="Direction of a plain function's value "
+        "(a registered metric declares its own).")] = False,
+    workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
+        help="Processes for a slow metric (default: CPU count).")] = None,
+) -> None:
+    """Score a metric against a suite's reference without training or RL.
+
+    Computes the metric on every shipped latent set as a run would and ranks it with the
+    reference's metrics against the reference's RL returns, beside the noise ceiling.
+    """
+    from repbench.pipeline.preflight import check_out_dir
+    from repbench.pipeline.score_metric import score_metric as score
+    from repbench.pipeline.suite import load_suite
+
+    name = metric.rpartition(":")[2] if ":" in metric else metric
+    out_dir = out if out is not None else str(
+        Path("leaderboards") / f"{load_suite(suite).name}-metric-{name}")
+    result = score(metric, suite, reference=reference or None, latents=latents,
+                   tasks=task or None, workers=workers, out=check_out_dir(out_dir),
+                   higher_is_better=not lower_is_better, echo=typer.echo)
+    for r in result.row.to_dict("records"):
+        typer.echo(
+            f"{r['task']} {r['agent']}: {result.metric} within-learned ρ "
+            f"{r['spearman_learned']:.2f} [{r['spearman_learned_ci_low']:.2f}, "
+            f"{r['spearman_learned_ci_high']:.2f}] over {r['n_learned']} encoders "
+            f"(all {r['spearman_all']:.2f}), rank {r['rank']} of {r['n_metrics']}, Holm p "
+            f"{r['spearman_learned_p_holm']:.3g}; noise ceiling {r['noise_ceiling']:.2f}, "
+            f"{r['of_ceiling']:.0%} of it")
+    typer.echo(f"scored in {result.seconds:.1f} s; written to {result.out_dir}")
+
+
+@app.command("export-latents")
+def export_latents(
+    suite: Annotated[str, typer.Option("--suite", "-s", help="Suite whose latents to "
+                                       "export.")] = "quick",
+    store: StoreOpt = None,
+    out: Annotated[Optional[str], typer.Option(  # noqa: UP045
+        "--out", help="Latents folder (default: leaderboards/<suite>/latents).")] = None,
+    task: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
+        "--task", help="Only this task (repeat for several).")] = None,
+    encoder: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
+        "--encoder", help="Only this encoder (repeat for several).")] = None,
+) -> None:
+    """Export a suite's latents from the store into its shipped latents folder.
+
+    Adds to (or replaces the same task and encoder in) what the folder holds; every file is
+    checksummed in its manifest.json.
+    """
+    from repbench.pipeline.latents_export import export_latents as export
+    from repbench.pipeline.preflight import check_out_dir
+    from repbench.pipeline.suite import load_suite
+
+    folder = out if out is not None else str(
+        Path("leaderboards") / load_suite(suite).name / "latents")
+    written = export(suite, store=store, out=check_out_dir(folder), tasks=task or None,
+                     encoders=encoder or None)
+    typer.echo(f"{len(written)} files written to {folder}")
+
+
 @task_app.command("preview")
 def task_preview(
     task: Annotated[str, typer.Argument(help="Registered task id, e.g. PegInHole-v0.")],

@@ -31,13 +31,15 @@ RELIABLE_R1 = 0.6
 
 
 def spearman_brown(r1: float, k: int) -> float:
-    """Reliability of the mean of ``k`` measurements whose pairwise correlation is ``r1``."""
-    return k * r1 / (1.0 + (k - 1) * r1)
+    """Reliability of the mean of ``k`` measurements whose pairwise correlation is ``r1`` (NaN
+    where it is undefined: r1 at or below −1/(k − 1))."""
+    denominator = 1.0 + (k - 1) * r1
+    return k * r1 / denominator if denominator > 0 else float("nan")
 
 
 def _ceiling(r1: float, k: int) -> float:
     rk = spearman_brown(r1, k)
-    return float(np.sqrt(rk)) if rk > 0 else 0.0
+    return float(np.sqrt(rk)) if rk > 0 else 0.0  # seeds that disagree: no ceiling above 0
 
 
 def _seed_to_seed(matrix: np.ndarray) -> float:

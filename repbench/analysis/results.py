@@ -349,16 +349,18 @@ def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Pa
         for old in folder.rglob("*.json"):
             if inspect_record(old)[0] is not None:
                 old.unlink(missing_ok=True)
-    paths = []
-    for r in records:
-        parts = [r["task"]["name"], *((r.get(p) or {}).get("name") for p in PLUGIN_PARTS[1:])]
-        if r["kind"] == "dataset":
-            parts.append((r.get("data") or {}).get("name"))
-        if isinstance(r.get("seed"), int) and r["kind"] == "rl":
-            parts.append(f"s{r['seed']}")
-        slug = ".".join(_slug(p) for p in parts if p)
-        paths.append(write_record(r, folder / r["kind"] / f"{slug}-{r['identity'][:8]}.json"))
-    return paths
+    return [write_record(r, folder / r["kind"] / f"{record_stem(r)}.json") for r in records]
+
+
+def record_stem(r: Mapping[str, Any]) -> str:
+    """The file name (without ``.json``) a record is shipped under:
+    ``<task>.<encoder>.<metric|agent>[.s<seed>]-<identity8>``."""
+    parts = [r["task"]["name"], *((r.get(p) or {}).get("name") for p in PLUGIN_PARTS[1:])]
+    if r["kind"] == "dataset":
+        parts.append((r.get("data") or {}).get("name"))
+    if isinstance(r.get("seed"), int) and r["kind"] == "rl":
+        parts.append(f"s{r['seed']}")
+    return ".".join(_slug(p) for p in parts if p) + f"-{r['identity'][:8]}"
 
 
 def _slug(text: str) -> str:

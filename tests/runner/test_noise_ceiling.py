@@ -132,3 +132,10 @@ def test_the_shipped_quick_board_carries_the_ceiling():
     assert sac.loc["SurfacePress-v0", "noise_ceiling"] == pytest.approx(0.70, abs=0.01)
     page = (board / "index.html").read_text(encoding="utf-8")
     assert "noise ceiling [95% CI]" in page[:page.index("</section>")]
+
+
+def test_seeds_in_perfect_disagreement_have_a_zero_ceiling():
+    assert math.isnan(spearman_brown(-1.0, 2))
+    per_encoder = {f"e{i}": {0: float(i), 1: float(-i)} for i in range(5)}
+    out = noise_ceiling(per_encoder, n_bootstrap=20)
+    assert out["r1"] == pytest.approx(-1.0) and out["ceiling"] == 0.0
