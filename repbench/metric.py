@@ -16,7 +16,8 @@ Extra arrays. A metric that needs more than ``(z, z_true, episode)`` declares ke
 parameters named after the arrays the latents stage stores (:data:`EXTRA_INPUTS`):
 ``robot_state`` (float ``[N, R]``: what the agent sees beside z, ``Task.robot_state``),
 ``task_state`` (float ``[N, K]``: ``Task.task_state``, e.g. the peg tip's offset from the hole),
-``action`` (float ``[N, A]``: the dataset's action at each step; on the on-policy dataset the
+``reward`` (float ``[N]``: the reward received for that action), ``action`` (float ``[N, A]``:
+the dataset's action at each step; on the on-policy dataset the
 privileged agent's) and ``source`` (int ``[N]``: which dataset a row came from). The metric stage
 passes exactly the ones the function's signature names; the wrapper checks their shape and values.
 
@@ -45,13 +46,19 @@ __all__ = ["EXTRA_INPUTS", "ROWS", "Metric", "MetricResult", "check_extra_input"
 
 
 def metric(name: str, *, higher_is_better: bool, description: str = "", min_samples: int = 10,
-           register: bool = True, version: int = 0, rows: str = "all",
+           register: bool = True, version: int = 0, rows: str = "all", group: str = "privileged",
            check: Callable[..., None] | None = None
            ) -> Callable[[Callable[..., MetricResult]], Metric]:
     """Decorator turning a function into a :class:`Metric` (and registering it by default).
 
     ``rows`` (``"all"`` or ``"on_policy"``) says which rows of the stored latents the metric
     stage computes it on (module docstring).
+
+    ``group``: ``"observable"`` for a metric that reads only what a real robot logs (z, robot
+    state, action, reward, episodes; it ignores ``z_true`` and never asks for ``task_state``),
+    ``"privileged"`` (the default) for one that reads the simulator's state. The board says
+    which (``metrics.csv``'s ``group``); an observable metric that asks for ``task_state`` is
+    refused here.
 
     ``check``: the metric's range checks, ``check(**params)`` with every tunable parameter
     (defaults filled in), raising :class:`~repbench.errors.ConfigError`. The planner runs it
@@ -64,7 +71,10 @@ def metric(name: str, *, higher_is_better: bool, description: str = "", min_samp
 
     def wrap(fn: Callable[..., MetricResult]) -> Metric:
         m = Metric(fn, name, higher_is_better, description, min_samples, version=version,
-                   rows=rows, check=check)
+                   rows=rows, check=check, group=group)
+        if group == "observable" and "task_state" in m.extra_inputs:
+            raise ValueError(f"metric {name!r} is declared observable but reads task_state, "
+                             "the simulator's state; declare it group='privileged'")
         if register:
             metrics.register(name, m)
         return m

@@ -35,9 +35,13 @@ from repbench.errors import ConfigError, DataError
 
 #: Arrays beside (z, z_true, episode) that a metric can ask for by naming a keyword parameter
 #: (see :mod:`repbench.metric`).
-EXTRA_INPUTS = ("robot_state", "task_state", "action", "source")
+EXTRA_INPUTS = ("robot_state", "task_state", "action", "source", "reward")
 #: Which rows of the stored latents a metric is computed on (see :mod:`repbench.metric`).
 ROWS = ("all", "on_policy")
+#: What a metric reads: ``observable`` — only what a real robot logs (z from its
+#: observations, robot state, action, reward, episodes); ``privileged`` — the simulator's
+#: state too (z°, the task state). See :mod:`repbench.metric`.
+GROUPS = ("observable", "privileged")
 #: The positional arguments every metric function takes; not parameters a suite can set.
 ARRAY_ARGUMENTS = ("z", "z_true", "episode", "rng")
 
@@ -76,9 +80,13 @@ class Metric:
     def __init__(self, fn: Callable[..., MetricResult], name: str, higher_is_better: bool,
                  description: str = "", min_samples: int = 10, needs_episodes: bool = False,
                  version: int = 0, rows: str = "all",
-                 check: Callable[..., None] | None = None) -> None:
+                 check: Callable[..., None] | None = None, group: str = "privileged") -> None:
         if rows not in ROWS:
             raise ValueError(f"metric {name!r}: rows must be one of {ROWS}, got {rows!r}")
+        if group not in GROUPS:
+            raise ValueError(f"metric {name!r}: group must be one of {GROUPS}, got {group!r}")
+        #: ``observable`` or ``privileged`` (:data:`GROUPS`)
+        self.group = group
         self.fn = fn
         #: the metric's own range checks: called with every tunable parameter (defaults filled
         #: in) as keywords; raises ConfigError (:meth:`check_params`)

@@ -16,7 +16,7 @@ training an encoder or running RL (``repbench score-metric``,
 * ``<task>/<record stem>.npz`` holds ``z``: float32 ``[N, D]``, the encoder's mean latent μ_z of
   each row (``np.savez_compressed``).
 * ``<task>/data-<sha12>.npz`` holds the rows' ``z_true`` (the true state z°), ``task_state``,
-  ``robot_state``, ``action``, ``episode``, ``step``, ``source`` (an index into
+  ``robot_state``, ``action``, ``reward``, ``episode``, ``step``, ``source`` (an index into
   ``source_names``, which dataset a row came from: ``heldout`` or ``on_policy``) and
   ``source_names``: exactly the latents stage's arrays (:func:`repbench.pipeline.stages.
   _run_latents`) without ``z``. ``sha12`` is the first 12 hex digits of the SHA-256 of those
@@ -54,8 +54,8 @@ FORMAT = "repbench.latents"
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"
 #: The arrays stored once per task (everything a latents stage stores but z).
-SHARED = ("z_true", "task_state", "robot_state", "action", "episode", "step", "source",
-          "source_names")
+SHARED = ("z_true", "task_state", "robot_state", "action", "reward", "episode", "step",
+          "source", "source_names")
 
 
 @dataclass
@@ -162,9 +162,11 @@ def read_latent_sets(folder: str | Path, tasks: Iterable[str] | None = None
     return out
 
 
-def write_latent_sets(pairs: Iterable[tuple[Mapping[str, Any], Path]], folder: str | Path
-                      ) -> list[Path]:
+def write_latent_sets(pairs: Iterable[tuple[Mapping[str, Any], Path]], folder: str | Path,
+                      extra: Any = None) -> list[Path]:
     """Write each (latents record, its ``latents.npz``) into ``folder`` in the format above,
+    with ``extra(record, arrays)``'s arrays added to the shared ones where the file lacks them
+    (the export adds ``reward`` to latents stored before the latents stage kept it),
     adding to (or replacing the same task × encoder in) what the folder's manifest already
     lists; returns the files written. Data files no set refers to any more are removed (only
     files the manifest lists: nothing else in the folder is touched)."""
@@ -182,6 +184,8 @@ def write_latent_sets(pairs: Iterable[tuple[Mapping[str, Any], Path]], folder: s
         task, encoder = record["task"]["name"], record["encoder"]["name"]
         with np.load(npz, allow_pickle=False) as f:
             arrays = {k: f[k] for k in f.files}
+        if extra is not None:
+            arrays = {**extra(record, arrays), **arrays}
         shared = {k: arrays[k] for k in SHARED if k in arrays}
         data_file = f"{task}/data-{_arrays_digest(shared)[:12]}.npz"
         if data_file not in manifest["data"] or not (folder / data_file).is_file():

@@ -6,12 +6,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from repbench.analysis.latent_sets import write_latent_sets
 from repbench.analysis.results import installed_versions, load_records, select
 from repbench.errors import ConfigError
 from repbench.pipeline.plan import build_plan
 from repbench.pipeline.records import identity_key
-from repbench.pipeline.stages import LATENTS
+from repbench.pipeline.stages import DATASET, LATENTS
 from repbench.pipeline.store import Store
 from repbench.pipeline.suite import load_suite
 
@@ -42,4 +44,21 @@ def export_latents(suite: str | Path, *, store: str | Path | None, out: str | Pa
         raise ConfigError(f"store {st.root} holds no latents of suite {s.name!r}"
                           + (f" on {', '.join(tasks)}" if tasks else "")
                           + f"; run `repbench run --suite {suite} --no-rl` first")
-    return write_latent_sets(pairs, out)
+    return write_latent_sets(pairs, out, extra=lambda record, arrays: _rewards(
+        st, record, arrays))
+
+
+def _rewards(store: Store, record: dict, arrays: dict) -> dict:
+    """``reward`` of latents stored before the latents stage kept it: the rewards of the
+    record's datasets, concatenated in the stage's order (its inputs sorted by name)."""
+    if "reward" in arrays:
+        return {}
+    parts = []
+    for _, key in sorted((record.get("data_stages") or {}).items()):
+        art = store.get(DATASET, key)
+        if art is None:
+            return {}
+        with np.load(art.file("dataset.npz"), allow_pickle=False) as f:
+            parts.append(np.asarray(f["reward"], dtype=np.float32))
+    reward = np.concatenate(parts) if parts else np.zeros(0, np.float32)
+    return {"reward": reward} if len(reward) == len(arrays["z"]) else {}

@@ -231,6 +231,7 @@ def score_metric(metric: str, suite: str = "quick", *,
 
     ranking, _ = metric_ranking(res, n_bootstrap=n_bootstrap)
     ranking = _ranked(ranking)
+    ranking.loc[ranking["metric"] == name, "group"] = fn.group
     row = ranking[ranking["metric"] == name].reset_index(drop=True)
     table = pd.DataFrame([{"task": x.task, "encoder": x.encoder,
                            **{k: v.get(k) for k in ("value", "ci_low", "ci_high", "time_s")}}

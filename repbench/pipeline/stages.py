@@ -181,8 +181,9 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
 
     ``latents.npz`` holds ``z``, ``z_true``, ``episode``, ``step``, ``source`` (index into
     ``source_names``: which dataset a row came from), ``action`` (the dataset's actions; on the
-    on-policy dataset the privileged agent's), ``robot_state`` (``Task.robot_state``: what the
-    agent sees beside z) and ``task_state`` (``Task.task_state``; absent for a task without one).
+    on-policy dataset the privileged agent's), ``reward`` (the reward each action received),
+    ``robot_state`` (``Task.robot_state``: what the agent sees beside z) and ``task_state``
+    (``Task.task_state``; absent for a task without one).
     """
     from repbench.encoder import Encoder, check_latent_dim, check_latents
 
@@ -205,7 +206,7 @@ def _run_latents(spec: StageSpec, store: Store, w: Any) -> None:
     arrays: dict[str, np.ndarray] = {
         "z": z.astype(np.float32), "z_true": data.true_state, "episode": data.episode,
         "step": data.step, "source": source, "source_names": np.array([n for n, _ in parts]),
-        "action": data.action}
+        "action": data.action, "reward": np.asarray(data.reward, dtype=np.float32)}
     notes: dict[str, Any] = {}
     if "task" in spec.config:
         task = _make_task(spec.config["task"])

@@ -117,7 +117,20 @@ def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
                             na_position="last").reset_index(drop=True)
         df = add_ceiling_columns(df, ceilings(res.rl_rows, families, n_bootstrap=n_bootstrap,
                                               seed=seed))
+        df.insert(3, "group", df["metric"].map(metric_group))
     return df, preds
+
+
+def metric_group(name: str) -> str:
+    """``observable`` or ``privileged`` (:data:`repbench.metric.GROUPS`): what the metric reads;
+    ``unknown`` for a metric that is not installed here."""
+    from repbench.errors import RepbenchError
+    from repbench.registry import metrics
+
+    try:
+        return str(getattr(metrics.get(name), "group", "privileged"))
+    except RepbenchError:
+        return "unknown"
 
 
 def add_loo_predicted_return(enc: pd.DataFrame, ranking: pd.DataFrame,
