@@ -19,6 +19,7 @@ from repbench.analysis.robustness import budgets_of_detail
 from repbench.report.html_parts import VERDICT_COLORS as _VERDICT_COLORS
 from repbench.report.html_parts import figure as _figure
 from repbench.report.html_parts import fmt as _fmt
+from repbench.report.html_parts import fmt2 as _fmt2
 
 #: The central figure, shown in the panel (and not again among the figures).
 CENTRAL_FIGURE = "Which metric predicts return, task by task"
@@ -61,13 +62,15 @@ def ceiling_rows(checks: pd.DataFrame | None) -> dict[tuple[str, str], dict[str,
     return out
 
 
-def _ceiling_cells(best: Any, ceiling: Any, fmt: Any) -> str:
+def _ceiling_cell(best: Any, ceiling: Any, fmt: Any) -> str:
+    """The noise ceiling [95 %] and, below it, the share of it the best metric reaches."""
     if ceiling is None:
-        return "<td>–</td><td>–</td>"
+        return "<td>–</td>"
     share = float(best["value"]) / float(ceiling["value"]) if ceiling["value"] else math.nan
-    return (f"<td title='{html.escape(str(ceiling['detail']))}'>{_estimate(ceiling, fmt)}</td>"
-            f"<td data-v='{share}'>{share:.0%}</td>" if math.isfinite(share) else
-            f"<td>{_estimate(ceiling, fmt)}</td><td>–</td>")
+    said = f"<br><span class='ci'>best metric: {share:.0%} of it</span>" \
+        if math.isfinite(share) else ""
+    return (f"<td title='{html.escape(str(ceiling['detail']))}' data-v='{ceiling['value']}'>"
+            f"{_estimate(ceiling, fmt)}{said}</td>")
 
 
 def _metric_rows(claims: pd.DataFrame, fmt: Any, colors: dict[str, str],
@@ -89,7 +92,7 @@ def _metric_rows(claims: pd.DataFrame, fmt: Any, colors: dict[str, str],
                  f"<td class='txt'><b>{html.escape(metric)}</b></td>",
                  f"<td data-v='{best['value']}'>{_estimate(best, fmt)}</td>",
                  f"<td class='txt'>{_verdict(best['verdict'], colors)}</td>",
-                 _ceiling_cells(best, ceilings.get((str(task), str(agent))), fmt)]
+                 _ceiling_cell(best, ceilings.get((str(task), str(agent))), fmt)]
         for _, claim in PAPER_METRICS:
             r = by_claim.get(claim)
             cells.append("<td>–</td>" if r is None else
@@ -192,7 +195,7 @@ def answer_section(claims: pd.DataFrame | None, checks: pd.DataFrame | None,
                    encoders_df: pd.DataFrame, figures: dict[str, Path]) -> list[str]:
     """The page's first section, ``<section id="answer">``; empty before any correlation."""
     rows = [] if claims is None or claims.empty else _metric_rows(
-        claims, _fmt, _VERDICT_COLORS, ceiling_rows(checks))
+        claims, _fmt2, _VERDICT_COLORS, ceiling_rows(checks))
     if not rows:
         return []
     paper_heads = "".join(f"<th class='txt'>{name}</th>" for name, _ in PAPER_METRICS)
@@ -209,11 +212,11 @@ def answer_section(claims: pd.DataFrame | None, checks: pd.DataFrame | None,
            "the metric ranking</a>.</p>",
            "<table id='answer-metrics'><thead><tr><th class='txt'>task</th>"
            "<th class='txt'>agent</th><th class='txt'>best metric</th><th>ρ [95% CI]</th>"
-           "<th class='txt'>verdict</th><th>noise ceiling [95% CI]</th><th>of ceiling</th>"
+           "<th class='txt'>verdict</th><th>noise ceiling [95% CI]</th>"
            f"{paper_heads}</tr></thead><tbody>"
            + "".join(rows) + "</tbody></table>"]
     if checks is not None and not checks.empty:
-        out.extend(_checks_table(checks, _fmt, _VERDICT_COLORS))
+        out.extend(_checks_table(checks, _fmt2, _VERDICT_COLORS))
     if CENTRAL_FIGURE in figures:
         out.append(f"<div class='fig'><h3>{html.escape(CENTRAL_FIGURE)}</h3>"
                    f"{_figure(figures[CENTRAL_FIGURE], CENTRAL_FIGURE)}</div>")

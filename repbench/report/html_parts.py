@@ -26,6 +26,15 @@ def fmt(v: Any) -> str:
     return str(v)
 
 
+def fmt2(v: Any) -> str:
+    """A statistic as the answer shows it: two decimals, '–' for missing or non-finite."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return f"{float(v):.2f}"
+    return str(v)
+
+
 def img(path: Path, alt: str) -> str:
     """A PNG file as an inlined ``<img>`` (data URI)."""
     data = base64.b64encode(path.read_bytes()).decode()
