@@ -179,7 +179,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     new_records = select(load_records(st, problems=dropped), wanted)
     ours = [r for r in new_records if (r.get("encoder") or {}).get("name") == encoder]
     shared = [r for r in new_records if not r.get("encoder")]  # datasets, diagnostics, agent
-    warnings = _compare_data(ours + shared, reference_records)
+    warnings = _compare_data(ours + shared, reference_records) + conformance_warnings(
+        plan, st, encoder)
     others = [r for r in reference_records if (r.get("encoder") or {}).get("name") != encoder]
     records = others + ours
     installed = installed_versions(records)
@@ -220,6 +221,51 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
         for i, err in report.failed.items():
             print(f"  FAILED {report.labels[i]}: {err}", flush=True)
     return EvaluateResult(out_dir, report, res, res.predictions, warnings, time.time() - start)
+
+
+#: Rows of the task's data :func:`conformance_warnings` encodes twice.
+CONFORMANCE_ROWS = 16
+
+
+def conformance_warnings(plan: Any, store: Store, encoder: str) -> list[str]:
+    """What ``check_encoder`` would flag in the trained ``encoder`` that a board must not publish
+    without a word: ``encode`` not deterministic (two calls on the same rows differ) or
+    modifying its input. Checked on :data:`CONFORMANCE_ROWS` rows of each task's metric data,
+    with the encoder the stages trained; one warning per problem and task."""
+    import copy
+
+    import numpy as np
+
+    from repbench.dataset import Dataset
+    from repbench.encoder import Encoder
+    from repbench.pipeline.stages import DATASET, ENCODER
+
+    out = []
+    for tp in plan.tasks:
+        spec = tp.encoders.get(encoder)
+        data_spec = tp.heldout_dataset or tp.random_dataset
+        art = store.get(ENCODER, spec.key) if spec is not None else None
+        data = store.get(DATASET, data_spec.key) if data_spec is not None else None
+        if art is None or data is None:
+            continue
+        enc = Encoder.load(art.file("encoder.pt"))
+        obs = Dataset.load(data.file("dataset.npz")).obs(slice(0, CONFORMANCE_ROWS))
+        before = copy.deepcopy(obs)
+        first = np.asarray(enc.encode(obs))
+        changed = sorted(k for k in before if not np.array_equal(before[k], obs[k]))
+        if changed:
+            out.append(f"encoder {encoder!r} on {tp.task}: encode modified its input "
+                       f"{', '.join(changed)}; its latents may not be what it computes on fresh "
+                       f"data — repbench.testing.check_encoder({encoder!r}) says more")
+        second = np.asarray(enc.encode(before))
+        if first.shape != second.shape or not np.array_equal(first, second):
+            gap = float(np.abs(first - second).max()) if first.shape == second.shape else \
+                float("nan")
+            out.append(f"encoder {encoder!r} on {tp.task}: encode is not deterministic (two "
+                       f"calls on the same {CONFORMANCE_ROWS} rows differ by up to {gap:.3g}); "
+                       "its metrics and RL are not reproducible — "
+                       f"repbench.testing.check_encoder({encoder!r}) says more")
+    return out
 
 
 def _compare_data(new: list[dict[str, Any]], reference: list[dict[str, Any]]) -> list[str]:

@@ -104,3 +104,43 @@ def test_prediction_interval_is_held_out() -> None:
     assert errors[3] == pytest.approx(0.5)  # the bump at e3, seen out of sample
     few = dict(list(metrics.items())[: MIN_REFERENCE - 1])
     assert predict_return(few, returns, {"m": 1.0}) is None
+
+
+class NoisyHalfState(HalfState):
+    """HalfState plus fresh noise on every call, and it scales its input in place."""
+
+    def encode(self, observations):  # type: ignore[no-untyped-def]
+        self.check_is_fitted()
+        p = self.check_observations(observations)["proprio"]
+        z = p[:, : self.width_] + np.random.default_rng().normal(size=(len(p), self.width_))
+        observations["proprio"] *= 1.0  # harmless
+        if len(p):
+            observations["proprio"][0, 0] += 1.0  # modifies its input
+        return z.astype(np.float32)
+
+
+def test_evaluate_says_when_the_encoder_is_not_deterministic_or_modifies_its_input(
+        tmp_path: Path) -> None:
+    """Issue 56: evaluate published an encoder check_encoder would flag without a word."""
+    from repbench.pipeline.evaluate import conformance_warnings
+    from repbench.pipeline.plan import build_plan
+    from repbench.pipeline.store import Store
+    from repbench.pipeline.suite import load_suite
+
+    suite = tmp_path / "toynoisy.toml"
+    suite.write_text(tiny_toy_suite("toynoisy", ["noisy_half", "half_state"]))
+    store = tmp_path / "store"
+    encoders.register("noisy_half", NoisyHalfState, replace=True)
+    encoders.register("half_state", HalfState, replace=True)
+    try:
+        run_suite(suite, store=store, out=tmp_path / "ref", workers=1, progress=False,
+                  no_rl=True)
+        plan = build_plan(load_suite(suite))
+        noisy = conformance_warnings(plan, Store(store), "noisy_half")
+        assert len(noisy) == 2
+        assert "modified its input proprio" in noisy[0]
+        assert "not deterministic" in noisy[1] and "check_encoder('noisy_half')" in noisy[1]
+        assert conformance_warnings(plan, Store(store), "half_state") == []
+    finally:
+        encoders.unregister("noisy_half")
+        encoders.unregister("half_state")
