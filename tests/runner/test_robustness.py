@@ -138,17 +138,18 @@ def test_best_metric_agreement_rule() -> None:
     b_far = _board([("x", 0.1, -0.3, 0.5), ("y", 0.8, 0.6, 0.9)])
     far = best_metric_agreement(a, b_far, check="c", first_label="A", second_label="B")
     assert far.verdict == "does not hold" and "best under B: y" in far.detail
-    assert "not evidence" not in same.detail  # its interval is above 0
-    # nothing predicts under B: x is not told apart from y, so "holds", said for what it is
+    assert "not shown to predict" not in same.detail  # its interval is above 0
+    # nothing predicts under B: x is not told apart from y, yet its interval includes 0: the
+    # verdict says "inconclusive", not "holds" beside a caveat that contradicts it
     b_none = _board([("x", 0.14, -0.35, 0.68), ("y", 0.29, -0.38, 0.70)])
     none = best_metric_agreement(a, b_none, check="c", first_label="A", second_label="B")
-    assert none.verdict == "holds" and none.detail.endswith(
-        "; holds = not told apart from the best there, not evidence that x predicts return "
-        "under B: its interval [-0.35, 0.68] includes 0")
+    assert none.verdict == "inconclusive" and none.detail.endswith(
+        "; not told apart from the best there, but not shown to predict return under B: its "
+        "interval [-0.35, 0.68] includes 0")
     weak = _board([("x", 0.37, -0.71, 0.97), ("y", 0.1, -0.5, 0.6)])  # x is still the best
-    assert best_metric_agreement(a, weak, check="c", first_label="A",
-                                 second_label="B").detail.endswith(
-        "; holds = the best there too, not evidence that x predicts return under B: its "
+    weak_check = best_metric_agreement(a, weak, check="c", first_label="A", second_label="B")
+    assert weak_check.verdict == "inconclusive" and weak_check.detail.endswith(
+        "; the best there too, but not shown to predict return under B: its "
         "interval [-0.71, 0.97] includes 0")
 
 
