@@ -105,12 +105,14 @@ def _metric_rows(claims: pd.DataFrame, fmt: Any, colors: dict[str, str],
 
 
 def _caveat(detail: Any) -> str:
-    """What a check's verdict does not say, where its detail states it (a "holds" whose
-    interval includes 0: ``"...; holds = <what it means>: <why>"``)."""
-    _, sep, said = str(detail).partition("; holds = ")
+    """Why a same-best-metric check is inconclusive, where its detail says it (the best metric,
+    or one not told apart from it, whose interval includes 0:
+    ``"...; <what it is>, but not shown to predict return under <setting>: <why>"``)."""
+    head, sep, _ = str(detail).partition(", but not shown to predict")
     if not sep:
         return ""
-    return f"<br><span class='ci'>{html.escape(said.split(':', 1)[0])}</span>"
+    said = head.rsplit("; ", 1)[-1]
+    return f"<br><span class='ci'>{html.escape(said)}, but not shown to predict</span>"
 
 
 def _budgets(detail: Any) -> str:

@@ -205,3 +205,15 @@ def test_predict_return_states_its_method() -> None:
     pred = predict_return(metrics, returns, {"m": 20.0}, fam)
     assert pred["method_name"] == CANDIDATES[0].name and pred["coverage"] == 0.8
     assert pred["predicted_return"] == pytest.approx(70.0)  # clipped to the reference range
+
+
+def test_the_answer_shows_why_a_same_best_metric_check_is_inconclusive() -> None:
+    from repbench.report.answer import _caveat
+
+    a = _board([("x", 0.9, 0.7, 0.97), ("y", 0.3, -0.2, 0.6)])
+    b_none = _board([("x", 0.14, -0.35, 0.68), ("y", 0.29, -0.38, 0.70)])
+    none = best_metric_agreement(a, b_none, check="c", first_label="A", second_label="B")
+    assert _caveat(none.detail) == ("<br><span class='ci'>not told apart from the best there, "
+                                    "but not shown to predict</span>")
+    same = best_metric_agreement(a, a, check="c", first_label="A", second_label="B")
+    assert _caveat(same.detail) == ""
