@@ -121,6 +121,13 @@ class Metric:
         return result
 
     @property
+    def label_free(self) -> bool:
+        """Whether the metric reads nothing but z (observable, and no extra array but
+        ``source``): a spectral score like RankMe. No ordering against the true state is
+        expected of it (:func:`repbench.testing.check_metric`)."""
+        return self.group == "observable" and not set(self.extra_inputs) - {"source"}
+
+    @property
     def extra_inputs(self) -> tuple[str, ...]:
         """The names in :data:`EXTRA_INPUTS` that the function's signature accepts."""
         sig = inspect.signature(self.fn).parameters

@@ -44,7 +44,9 @@ def synthetic_extra_inputs(z_true: np.ndarray, episode: np.ndarray, static_dims:
     ``robot_state``: the random-walk (dynamic) dimensions; ``task_state``: the first
     ``static_dims`` dynamic dimensions minus the static "hole" dimensions, then the next
     ``static_dims`` dynamic dimensions (a velocity-like part the robot state determines);
-    ``action``: a clipped pull towards the hole plus noise; ``source``: all zeros.
+    ``action``: a clipped pull towards the hole plus noise; ``reward``: minus the sum of the
+    offset's components (linear in the task state, so a probe of it has a known answer);
+    ``source``: all zeros.
     """
     rng = np.random.default_rng(seed)
     robot = z_true[:, :-static_dims]
@@ -53,7 +55,7 @@ def synthetic_extra_inputs(z_true: np.ndarray, episode: np.ndarray, static_dims:
     task = np.hstack([offset, robot[:, static_dims:2 * static_dims]])
     action = np.clip(-offset + 0.1 * rng.standard_normal(offset.shape), -1.0, 1.0)
     return {"robot_state": robot, "task_state": task, "action": action,
-            "source": np.zeros(len(z_true), dtype=np.int64)}
+            "reward": -offset.sum(axis=1), "source": np.zeros(len(z_true), dtype=np.int64)}
 
 
 def _expect_data_error(m: Metric, what: str, *args: Any, **params: Any) -> None:
@@ -78,7 +80,9 @@ def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, episode_
     value; a fixed seed reproduces value and CI; the CI is either None on both ends or
     brackets the value (``ci_low <= value <= ci_high``); NaN, misaligned rows, a 1-D ``z``
     and too few samples raise :class:`DataError` with a one-line message; the true state as
-    ``z`` scores better than a random map (independent noise), respecting the direction.
+    ``z`` scores better than a random map (independent noise), respecting the direction —
+    except for a label-free metric (:attr:`Metric.label_free`: it reads nothing but z, e.g.
+    RankMe), which cannot know which z is the true state.
     ``params`` are passed to the metric (e.g. ``steps=300`` for a slow estimator); a metric
     that asks for extra arrays (``robot_state``, ``task_state``, ``action``, ``source``) gets
     the synthetic ones of :func:`synthetic_extra_inputs` unless ``params`` gives them. Returns
@@ -124,6 +128,8 @@ def check_metric(metric_or_name: Metric | str, *, n_episodes: int = 10, episode_
     _expect_data_error(m, "too few samples", z_true[:3], z_true[:3], episode[:3], seed, **params)
     _expect_data_error(m, "misaligned episode ids", z_true, z_true, episode[:-1], seed, **params)
 
+    if m.label_free:  # it reads nothing but z: it cannot know which z is the true state
+        return res
     rand = m(z_random, z_true, episode, seed, **params)
     better = rand.value < res.value if m.higher_is_better else rand.value > res.value
     assert better, (

@@ -23,10 +23,12 @@ def _extras(name: str, z_true: np.ndarray, episode: np.ndarray) -> dict[str, np.
 
 #: Metrics of what z adds beyond the robot state: folding robot-state dims of z changes nothing
 #: they measure (the agent has the robot state anyway), so only true/folded > random is known.
-BEYOND_ROBOT = {"task_cmi", "task_r2_gain", "task_probe", "action_probe"}
+BEYOND_ROBOT = {"task_cmi", "task_r2_gain", "task_probe", "action_probe", "value_probe",
+                "value_probe_gain", "reward_probe_gain"}
 
 
-@pytest.mark.parametrize("name", [n for n in metrics.names() if n != "mine"])
+@pytest.mark.parametrize("name", [n for n in metrics.names()
+                                  if n != "mine" and not metrics.get(n).label_free])
 def test_true_beats_folded_beats_random(name: str, realistic) -> None:
     z_true, episode = realistic
     m = metrics.get(name)
@@ -77,7 +79,7 @@ def test_fully_constant_z_defined_or_clear_error(name: str, realistic) -> None:
     # a defined value must be the uninformative level: no information (MI 0), the best
     # constant predictor (regression error ~1; train/test mean differ, measured 1.00), or the
     # random-neighbour KNN-MSE; a random map may score worse (an overfit MLP reaches 1.2)
-    if name in ("task_probe", "action_probe"):  # z adds nothing: the robot state's own R²
+    if name in ("task_probe", "action_probe", "value_probe"):  # z adds nothing: r's own R²
         assert res.value == pytest.approx(res.extras["r2_robot_only"], abs=1e-12)
     elif m.higher_is_better:
         # task_r2_gain of a random map: an MLP overfit on noise inputs, measured -0.23
@@ -104,3 +106,15 @@ def test_true_state_differences(realistic) -> None:
     assert sum(d["first"][0]["histogram"]["counts"]) == d["first"][0]["n"]
     with pytest.raises(DataError):
         true_state_differences(z_true[:, 0], episode)
+
+
+@pytest.mark.parametrize("name", [n for n in metrics.names() if metrics.get(n).label_free])
+def test_a_label_free_metric_does_not_change_under_a_rotation_of_z(name: str, realistic) -> None:
+    """What a label-free (spectral) metric owes instead of the ordering: it scores the spread
+    of z, so an orthogonal rotation of z changes nothing."""
+    z_true, episode = realistic
+    q, _ = np.linalg.qr(np.random.default_rng(3).standard_normal((z_true.shape[1],) * 2))
+    m = metrics.get(name)
+    plain = m(z_true, z_true, episode, 0, n_bootstrap=0).value
+    rotated = m(z_true @ q, z_true, episode, 0, n_bootstrap=0).value
+    assert rotated == pytest.approx(plain, rel=1e-6, abs=1e-9)
