@@ -253,6 +253,9 @@ def score_metric(
     lower_is_better: Annotated[bool, typer.Option(
         "--lower-is-better/--higher-is-better", help="Direction of a plain function's value "
         "(a registered metric declares its own).")] = False,
+    observable: Annotated[bool, typer.Option(
+        "--observable", help="A plain function reads only what a real robot logs (no "
+        "simulator state): its group on the board.")] = False,
     workers: Annotated[Optional[int], typer.Option(  # noqa: UP045
         help="Processes for a slow metric (default: CPU count).")] = None,
 ) -> None:
@@ -270,7 +273,8 @@ def score_metric(
         Path("leaderboards") / f"{load_suite(suite).name}-metric-{name}")
     result = score(metric, suite, reference=reference or None, latents=latents,
                    tasks=task or None, workers=workers, out=check_out_dir(out_dir),
-                   higher_is_better=not lower_is_better, echo=typer.echo)
+                   higher_is_better=not lower_is_better, observable=observable,
+                   echo=typer.echo)
     for r in result.row.to_dict("records"):
         typer.echo(
             f"{r['task']} {r['agent']}: {result.metric} within-learned ρ "

@@ -85,12 +85,14 @@ def latents_dir(suite_name: str, latents: str | Path | None = None) -> Path:
                       "or score against a suite that ships them (quick)")
 
 
-def resolve_metric(reference: str, higher_is_better: bool | None = None) -> Metric:
+def resolve_metric(reference: str, higher_is_better: bool | None = None,
+                   observable: bool = False) -> Metric:
     """The metric named ``reference``: a registered name, or ``file.py:name`` /
     ``module:name`` of a :class:`~repbench.metric.Metric` (``@repbench.metric(...,
     register=False)``) or of a plain function ``fn(z, z_true, episode, rng, **kw)`` returning a
     :class:`~repbench.metric.MetricResult` or a number. A plain function's direction is
-    ``higher_is_better`` (default True)."""
+    ``higher_is_better`` (default True), its group ``observable`` or (default) ``privileged``
+    (:data:`repbench.metric.GROUPS`)."""
     if not is_reference(reference):
         return metrics.get(reference)
     obj = import_reference(reference)
@@ -117,7 +119,8 @@ def resolve_metric(reference: str, higher_is_better: bool | None = None) -> Metr
         raise PluginError(f"metric {reference!r} returned {type(out).__name__}; return a "
                           "MetricResult or a number")
 
-    return Metric(as_result, name, direction)
+    return Metric(as_result, name, direction,
+                  group="observable" if observable else "privileged")
 
 
 def _params(fn: Metric, suite: Any, name: str) -> dict[str, Any]:
@@ -133,12 +136,13 @@ def _params(fn: Metric, suite: Any, name: str) -> dict[str, Any]:
 
 
 def _compute(reference: str, higher_is_better: bool | None, latent_set: LatentSet,
-             seed: int, params: Mapping[str, Any], name: str) -> dict[str, Any]:
+             seed: int, params: Mapping[str, Any], name: str,
+             observable: bool = False) -> dict[str, Any]:
     """One latent set's metric values (in a worker process too: the metric is resolved from
     its reference there), with one thread as a run's metric stage has."""
     from repbench.devices import torch_threads
 
-    fn = resolve_metric(reference, higher_is_better)
+    fn = resolve_metric(reference, higher_is_better, observable)
     with torch_threads(1, blas=True):
         return compute_on_latents(fn, latent_set.arrays(), seed=seed, params=params,
                                   who=f"metric {name!r} on {latent_set.task} "
@@ -147,29 +151,28 @@ def _compute(reference: str, higher_is_better: bool | None, latent_set: LatentSe
 
 def _compute_all(reference: str, higher_is_better: bool | None, sets: Sequence[LatentSet],
                  seed: int, params: Mapping[str, Any], name: str, workers: int,
-                 echo: Callable[[str], None] | None, progress: bool) -> list[dict[str, Any]]:
+                 echo: Callable[[str], None] | None, progress: bool,
+                 observable: bool = False) -> list[dict[str, Any]]:
     from tqdm.auto import tqdm
 
     bar = tqdm(total=len(sets), desc=f"score {name}", unit="set", disable=not progress,
                leave=False)
-    out = []
-    start = time.time()
-    out.append(_compute(reference, higher_is_better, sets[0], seed, params, name))
+    out = [_compute(reference, higher_is_better, sets[0], seed, params, name, observable)]
     bar.update()
-    first = time.time() - start
+    first = float(out[0]["time_s"])  # the metric's own time, not the files' first read
     rest = list(sets[1:])
     if rest and workers > 1 and first > PARALLEL_ABOVE_S:
         if echo is not None:
             echo(f"{name}: {first:.1f} s per latent set; {len(rest)} more on {workers} workers")
         with ProcessPoolExecutor(max_workers=workers) as pool:
             futures = [pool.submit(_compute, reference, higher_is_better, s, seed,
-                                   dict(params), name) for s in rest]
+                                   dict(params), name, observable) for s in rest]
             for f in futures:
                 out.append(f.result())
                 bar.update()
     else:
         for s in rest:
-            out.append(_compute(reference, higher_is_better, s, seed, params, name))
+            out.append(_compute(reference, higher_is_better, s, seed, params, name, observable))
             bar.update()
     bar.close()
     return out
@@ -186,9 +189,9 @@ def score_metric(metric: str, suite: str = "quick", *,
                  reference: str | Path | Sequence[str | Path] | None = None,
                  latents: str | Path | None = None, tasks: Sequence[str] | None = None,
                  workers: int | None = None, out: str | Path | None = None,
-                 higher_is_better: bool | None = None, n_bootstrap: int = 1000,
-                 echo: Callable[[str], None] | None = None, progress: bool = True
-                 ) -> MetricScore:
+                 higher_is_better: bool | None = None, observable: bool = False,
+                 n_bootstrap: int = 1000, echo: Callable[[str], None] | None = None,
+                 progress: bool = True) -> MetricScore:
     """Score ``metric`` against ``suite``'s reference (module docstring).
 
     Args:
@@ -201,11 +204,12 @@ def score_metric(metric: str, suite: str = "quick", *,
             ``<metric>.csv`` (its rows), ``<metric>_values.csv`` and
             ``figures/<metric>_vs_return.png``; None writes nothing.
         higher_is_better: a plain function's direction (default True).
+        observable: a plain function reads only what a real robot logs (its ``group``).
         n_bootstrap: bootstrap resamples for the correlation intervals.
     """
     start = time.time()
     s = load_suite(suite)
-    fn = resolve_metric(metric, higher_is_better)
+    fn = resolve_metric(metric, higher_is_better, observable)
     name = fn.name
     folder = latents_dir(s.name, latents)
     sets = read_latent_sets(folder, tasks)
@@ -222,7 +226,7 @@ def score_metric(metric: str, suite: str = "quick", *,
                           f"whose latents are in {folder}; nothing to score against")
     params = _params(fn, s, name)
     values = _compute_all(metric, higher_is_better, sets, s.metric_settings.seed, params, name,
-                          workers or os.cpu_count() or 1, echo, progress)
+                          workers or os.cpu_count() or 1, echo, progress, observable)
     res.metric_rows = [r for r in res.metric_rows if r["metric"] != name] + [
         {"task": x.task, "encoder": x.encoder, "metric": name, **v, "stage_cpu_s": None}
         for x, v in zip(sets, values, strict=True)]

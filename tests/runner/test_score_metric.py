@@ -141,8 +141,11 @@ def test_a_plain_file_metric_is_scored_beside_the_reference_metrics(reference: P
                                                                     tmp_path: Path):
     (tmp_path / "my_metric.py").write_text(FILE_METRIC)
     out = tmp_path / "scored"
-    result = _score(reference, f"{tmp_path / 'my_metric.py'}:spread", out=out)
+    result = _score(reference, f"{tmp_path / 'my_metric.py'}:spread", out=out, observable=True)
     row = result.row.iloc[0]
+    assert row["group"] == "observable"
+    assert set(result.ranking.loc[result.ranking["metric"] != "spread", "group"]) == {
+        "privileged"}
     assert result.metric == "spread" and len(result.row) == 1
     assert row["n_learned"] == 4 and row["n_all"] == 6
     assert set(result.ranking["metric"]) == {"ksg", "regression", "spread"}

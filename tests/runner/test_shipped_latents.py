@@ -85,3 +85,22 @@ def test_cheap_builtin_metrics_from_the_shipped_latents_reproduce_the_records():
 @pytest.mark.slow
 def test_every_builtin_metric_from_the_shipped_latents_reproduces_the_records():
     _reproduce(ALL)
+
+
+def test_a_plain_file_metric_is_scored_against_the_shipped_reference(tmp_path: Path):
+    from repbench.pipeline.score_metric import score_metric
+
+    (tmp_path / "spread.py").write_text(
+        "import numpy as np\n\n\ndef spread(z, z_true, episode, rng):\n"
+        "    return float(np.var(z, axis=0).sum())\n")
+    result = score_metric(f"{tmp_path / 'spread.py'}:spread", "quick", workers=1,
+                          progress=False, n_bootstrap=100, observable=True)
+    shipped = read_latent_sets(BOARD / "latents")
+    assert set(result.row["task"]) == {s.task for s in shipped}
+    assert len(result.values) == len(shipped)
+    for row in result.row.to_dict("records"):
+        assert row["group"] == "observable" and 1 <= row["rank"] <= row["n_metrics"]
+        assert row["n_learned"] == sum(s.task == row["task"] for s in shipped
+                                       if s.encoder not in ("oracle", "oracle_task", "random",
+                                                            "pca", "proprio_only"))
+        assert 0 < row["noise_ceiling"] <= 1
