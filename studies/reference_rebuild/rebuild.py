@@ -36,6 +36,10 @@ def one_encoder_suite(encoder: str, folder: Path) -> Path:
     text = QUICK.read_text(encoding="utf-8")
     text, n = re.subn(r"(?ms)^encoders = \[.*?^\]", f'encoders = ["{encoder}"]', text)
     assert n == 1, "quick.toml's encoders list not found"
+    # the other encoders' [encoder_params.<name>] tables: a suite refuses params of an encoder
+    # it does not run
+    text = re.sub(r"(?ms)^\[encoder_params\.(?!" + re.escape(encoder) + r"\])[^\]]+\]\n.*?(?=^\[|\Z)",
+                  "", text)
     path = folder / f"quick_{encoder}.toml"
     path.write_text(text, encoding="utf-8")
     return path
