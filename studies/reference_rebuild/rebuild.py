@@ -38,8 +38,8 @@ def one_encoder_suite(encoder: str, folder: Path) -> Path:
     assert n == 1, "quick.toml's encoders list not found"
     # the other encoders' [encoder_params.<name>] tables: a suite refuses params of an encoder
     # it does not run
-    text = re.sub(r"(?ms)^\[encoder_params\.(?!" + re.escape(encoder) + r"\])[^\]]+\]\n.*?(?=^\[|\Z)",
-                  "", text)
+    others = r"(?ms)^\[encoder_params\.(?!" + re.escape(encoder) + r"\])[^\]]+\]\n.*?(?=^\[|\Z)"
+    text = re.sub(others, "", text)
     path = folder / f"quick_{encoder}.toml"
     path.write_text(text, encoding="utf-8")
     return path
