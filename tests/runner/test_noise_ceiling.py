@@ -92,28 +92,34 @@ def _board_results():
     return res
 
 
-def test_the_board_shows_the_ceiling_beside_every_metric_and_in_the_answer(tmp_path):
-    import pandas as pd
-
-    from repbench.report.leaderboard import write_leaderboards
+def test_the_board_shows_the_ceiling_beside_every_metric_and_in_the_answer():
+    from repbench.report.answer import answer_section
+    from repbench.report.leaderboard import (
+        encoder_table,
+        metric_ranking,
+        paper_claims,
+        robustness_checks,
+    )
 
     res = _board_results()
-    write_leaderboards(res, tmp_path)
-    metrics = pd.read_csv(tmp_path / "metrics.csv")
+    metrics, _ = metric_ranking(res, n_bootstrap=200)  # the columns metrics.csv leads with
     per = {e: {r["seed"]: r["eval_return"] for r in res.rl_rows if r["encoder"] == e}
-           for e in {r["encoder"] for r in res.rl_rows}}
-    expected = noise_ceiling(per)
+           for e in dict.fromkeys(r["encoder"] for r in res.rl_rows)}  # the board's order
+    expected = noise_ceiling(per, n_bootstrap=200)
     row = metrics.iloc[0]
     assert row["noise_ceiling"] == pytest.approx(expected["ceiling"])
     assert row["seed_to_seed_r1"] == pytest.approx(expected["r1"])
     assert row["of_ceiling"] == pytest.approx(row["spearman_learned"] / expected["ceiling"])
-    checks = pd.read_csv(tmp_path / "robustness.csv")
+    checks = robustness_checks(res, metrics)  # robustness.csv
     ceiling = checks[checks["check"] == "SAC returns rank the encoders reliably T-v0"]
-    assert len(ceiling) == 1 and ceiling["value"].iloc[0] == pytest.approx(expected["ceiling"])
-    page = (tmp_path / "index.html").read_text(encoding="utf-8")
-    answer = page[page.index("<section id='answer'>"):]
+    assert len(ceiling) == 1
+    full = noise_ceiling(per)  # the check's own 1000 resamples
+    assert ceiling["value"].iloc[0] == pytest.approx(full["ceiling"])
+    assert ceiling["ci_low"].iloc[0] == pytest.approx(full["ceiling_ci_low"])
+    answer = "".join(answer_section(paper_claims(res, metrics), checks, encoder_table(res), {}))
     assert "noise ceiling [95% CI]" in answer
-    assert f"{row['of_ceiling']:.0%}" in answer[:answer.index("</table>")]
+    share = row["spearman_learned"] / full["ceiling"]
+    assert f"best metric: {share:.0%} of it" in answer[:answer.index("</table>")]
 
 
 def test_the_shipped_quick_board_carries_the_ceiling():
