@@ -38,7 +38,10 @@ def test_two_runs_on_one_store_compute_each_stage_once(cli: Cli) -> None:
     reused = [int(m.group(2)) for m in summaries if m]
     n_stages = len(list(store.glob("*/*/meta.json")))
     assert n_stages == 7  # dataset, diagnostics, encoder, latents, 2 metrics, 1 RL run
-    assert sum(computed) == n_stages, outputs  # each stage computed by one run only
+    said = "\n".join(f"run{n}: {line.strip()}" for n, (out, _) in enumerate(outputs, 1)
+                     for line in out.splitlines()
+                     if line.lstrip().startswith(("done", "reused", "FAILED")))
+    assert sum(computed) == n_stages, said  # each stage computed by one run only
     assert [c + r for c, r in zip(computed, reused, strict=True)] == [n_stages, n_stages]
     starts = Counter(e["metric"] for e in cli.events() if e["event"] == "start")
     assert starts == {"fault_mlp": 1}
