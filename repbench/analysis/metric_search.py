@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-__all__ = ["Selection", "compare_on", "loo_rank_model", "nested_selection"]
+__all__ = ["Selection", "compare_on", "loo_rank_model", "loo_rmse", "nested_selection",
+           "reference_gaps", "transfer_model"]
 
 
 def _ranks(x: np.ndarray) -> np.ndarray:
@@ -124,3 +125,52 @@ def compare_on(values: pd.DataFrame, per_seed: Mapping[str, Sequence[float]], se
             "rho_selected": point[0], "rho_selected_ci": (float(lo[0]), float(hi[0])),
             "rho_baseline": point[1], "rho_baseline_ci": (float(lo[1]), float(hi[1])),
             "difference": point[0] - point[1], "difference_ci": (float(lo[2]), float(hi[2]))}
+
+
+def transfer_model(train_x: np.ndarray, train_y: np.ndarray, test_x: np.ndarray) -> np.ndarray:
+    """A rank model fitted on one task applied to another: OLS of ``train_y`` on the training
+    encoders' metric ranks, evaluated on the test encoders' ranks *within the test task* (the
+    metrics' scales differ between tasks; their ranks do not)."""
+    train_x, test_x = np.atleast_2d(train_x.T).T, np.atleast_2d(test_x.T).T
+    design = np.column_stack([np.ones(len(train_x)), _ranks(train_x)])
+    coef, *_ = np.linalg.lstsq(design, train_y, rcond=None)
+    return np.column_stack([np.ones(len(test_x)), _ranks(test_x)]) @ coef
+
+
+def loo_rmse(x: np.ndarray, y: np.ndarray) -> float:
+    """Root mean squared error of :func:`loo_rank_model`'s leave-one-encoder-out predictions of
+    ``y`` from the metric columns ``x``."""
+    x = np.atleast_2d(np.asarray(x, float).T).T
+    y = np.asarray(y, float)
+    return float(np.sqrt(np.mean((loo_rank_model(x, y) - y) ** 2)))
+
+
+def reference_gaps(sets: Sequence[Mapping[str, Any]], rl_records: Sequence[Mapping[str, Any]],
+                   learned: Mapping[str, Sequence[str]], *, agent: str = "sac",
+                   n_seeds: int = 3) -> list[str]:
+    """What keeps a reference from being complete, one line each (empty when complete).
+
+    Complete means: every learned encoder of every task in ``learned`` (task → encoders) has a
+    shipped latent set (``sets``: manifest entries with ``task``, ``encoder``,
+    ``encoder_weights``) and ``n_seeds`` distinct ``agent`` seeds in ``rl_records`` (records as
+    written by a run) whose ``encoder_weights`` equal the shipped set's."""
+    shipped = {(s["task"], s["encoder"]): s["encoder_weights"] for s in sets}
+    seeds: dict[tuple[str, str], dict[Any, set[Any]]] = {}  # → weights → seeds
+    for r in rl_records:
+        if r["agent"]["name"] == agent:
+            seeds.setdefault((r["task"]["name"], r["encoder"]["name"]), {}).setdefault(
+                r.get("encoder_weights"), set()).add(r["seed"])
+    gaps = []
+    for task, encoders in learned.items():
+        for enc in encoders:
+            weights = shipped.get((task, enc))
+            if weights is None:
+                gaps.append(f"{task} {enc}: no shipped latents")
+                continue
+            runs = seeds.get((task, enc), {})
+            ours = runs.get(weights, set())
+            if len(ours) < n_seeds:
+                other = len(set().union(*runs.values()) - ours) if runs else 0
+                gaps.append(f"{task} {enc}: {len(ours)} of {n_seeds} {agent} seeds of the "
+                            f"shipped weights" + (f" ({other} of other weights)" if other else ""))
+    return gaps

@@ -37,7 +37,7 @@ from repbench.pipeline.suite import load_suite
 from repbench.references import import_reference, is_reference
 from repbench.registry import metrics
 
-__all__ = ["MetricScore", "latents_dir", "resolve_metric", "score_metric"]
+__all__ = ["MetricScore", "latents_dir", "resolve_metric", "score_metric", "score_metrics"]
 
 #: A metric slower than this per latent set (seconds, measured on the first) is computed on
 #: the rest in worker processes.
@@ -55,9 +55,12 @@ class MetricScore:
         row: its rows of ``metrics.csv`` (one per task × agent), with ``rank`` among the
             metrics of that task × agent (1 = best within-learned ρ) and ``n_metrics``.
         ranking: every metric's rows on the same encoders, the scored one included.
-        values: the metric per task × encoder (``value``, ``ci_low``, ``ci_high``, ``time_s``).
+        values: the metric per task × encoder (``metric``, ``value``, ``ci_low``, ``ci_high``,
+            ``time_s``).
         out_dir: where the tables and the figure were written (None when not written).
         seconds: wall time of the whole scoring.
+        results: the reference's results on the shipped encoders, the scored metrics' rows in
+            place of any records of the same name.
     """
 
     metric: str
@@ -66,6 +69,7 @@ class MetricScore:
     values: pd.DataFrame
     out_dir: Path | None
     seconds: float
+    results: Results | None = None
 
 
 def latents_dir(suite_name: str, latents: str | Path | None = None) -> Path:
@@ -207,10 +211,31 @@ def score_metric(metric: str, suite: str = "quick", *,
         observable: a plain function reads only what a real robot logs (its ``group``).
         n_bootstrap: bootstrap resamples for the correlation intervals.
     """
+    return score_metrics([metric], suite, reference=reference, latents=latents, tasks=tasks,
+                         workers=workers, out=out, higher_is_better=higher_is_better,
+                         observable=observable, n_bootstrap=n_bootstrap, echo=echo,
+                         progress=progress)
+
+
+def score_metrics(metric_refs: Sequence[str], suite: str = "quick", *,
+                  reference: str | Path | Sequence[str | Path] | None = None,
+                  latents: str | Path | None = None, tasks: Sequence[str] | None = None,
+                  workers: int | None = None, out: str | Path | None = None,
+                  higher_is_better: bool | None = None, observable: bool = False,
+                  n_bootstrap: int = 1000, echo: Callable[[str], None] | None = None,
+                  progress: bool = True) -> MetricScore:
+    """Score several metrics at once, ranked together with the reference's own metrics in one
+    ranking (so the multiplicity correction covers all of them): as :func:`score_metric`, with
+    ``metric`` the comma-joined names and ``row`` / ``values`` holding every scored metric's
+    rows (column ``metric``)."""
     start = time.time()
+    if not metric_refs:
+        raise ConfigError("no metric to score; name at least one")
     s = load_suite(suite)
-    fn = resolve_metric(metric, higher_is_better, observable)
-    name = fn.name
+    fns = [resolve_metric(m, higher_is_better, observable) for m in metric_refs]
+    names = [fn.name for fn in fns]
+    if len(set(names)) < len(names):
+        raise ConfigError(f"metrics {', '.join(names)} name one metric twice; name each once")
     folder = latents_dir(s.name, latents)
     sets = read_latent_sets(folder, tasks)
     if not sets:
@@ -224,26 +249,33 @@ def score_metric(metric: str, suite: str = "quick", *,
     if not res.rl_rows:
         raise ConfigError(f"the reference of suite {s.name!r} has no RL records of the encoders "
                           f"whose latents are in {folder}; nothing to score against")
-    params = _params(fn, s, name)
-    values = _compute_all(metric, higher_is_better, sets, s.metric_settings.seed, params, name,
-                          workers or os.cpu_count() or 1, echo, progress, observable)
-    res.metric_rows = [r for r in res.metric_rows if r["metric"] != name] + [
-        {"task": x.task, "encoder": x.encoder, "metric": name, **v, "stage_cpu_s": None}
-        for x, v in zip(sets, values, strict=True)]
-    res.provenance.setdefault("directions", {})[name] = fn.higher_is_better
+    res.metric_rows = [r for r in res.metric_rows if r["metric"] not in names]
+    tables = []
+    for ref, fn, name in zip(metric_refs, fns, names, strict=True):
+        values = _compute_all(ref, higher_is_better, sets, s.metric_settings.seed,
+                              _params(fn, s, name), name, workers or os.cpu_count() or 1, echo,
+                              progress, observable)
+        res.metric_rows += [
+            {"task": x.task, "encoder": x.encoder, "metric": name, **v, "stage_cpu_s": None}
+            for x, v in zip(sets, values, strict=True)]
+        res.provenance.setdefault("directions", {})[name] = fn.higher_is_better
+        tables.append(pd.DataFrame([
+            {"task": x.task, "encoder": x.encoder, "metric": name,
+             **{k: v.get(k) for k in ("value", "ci_low", "ci_high", "time_s")}}
+            for x, v in zip(sets, values, strict=True)]))
     from repbench.report.leaderboard import metric_ranking
 
     ranking, _ = metric_ranking(res, n_bootstrap=n_bootstrap)
     ranking = _ranked(ranking)
-    ranking.loc[ranking["metric"] == name, "group"] = fn.group
-    row = ranking[ranking["metric"] == name].reset_index(drop=True)
-    table = pd.DataFrame([{"task": x.task, "encoder": x.encoder,
-                           **{k: v.get(k) for k in ("value", "ci_low", "ci_high", "time_s")}}
-                          for x, v in zip(sets, values, strict=True)])
+    for fn, name in zip(fns, names, strict=True):
+        ranking.loc[ranking["metric"] == name, "group"] = fn.group
+    row = ranking[ranking["metric"].isin(names)].reset_index(drop=True)
+    table = pd.concat(tables, ignore_index=True)
     out_dir = None
     if out is not None:
-        out_dir = _write(Path(out), name, row, ranking, table, res)
-    return MetricScore(name, row, ranking, table, out_dir, time.time() - start)
+        out_dir = _write(Path(out), names, row, ranking, table, res)
+    return MetricScore(",".join(names), row, ranking, table, out_dir, time.time() - start,
+                       res)
 
 
 def _ranked(ranking: pd.DataFrame) -> pd.DataFrame:
@@ -257,19 +289,22 @@ def _ranked(ranking: pd.DataFrame) -> pd.DataFrame:
     return ranking
 
 
-def _write(out: Path, name: str, row: pd.DataFrame, ranking: pd.DataFrame,
+def _write(out: Path, names: Sequence[str], row: pd.DataFrame, ranking: pd.DataFrame,
            values: pd.DataFrame, res: Results) -> Path:
     from repbench.report.figures import metric_vs_return
     from repbench.report.leaderboard import metric_table
 
     out.mkdir(parents=True, exist_ok=True)
-    slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
-    row.to_csv(out / f"{slug}.csv", index=False, float_format="%.6g")
     ranking.to_csv(out / "metrics.csv", index=False, float_format="%.6g")
-    values.to_csv(out / f"{slug}_values.csv", index=False, float_format="%.6g")
-    only = dataclasses.replace(res, metric_rows=[r for r in res.metric_rows
-                                                 if r["metric"] == name])
     (out / "figures").mkdir(exist_ok=True)
-    titles = row.merge(metric_table(only), on=["task", "agent", "metric"], how="left")
-    metric_vs_return(only, out / "figures" / f"{slug}_vs_return.png", titles)
+    for name in names:
+        slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+        mine = row[row["metric"] == name]
+        mine.to_csv(out / f"{slug}.csv", index=False, float_format="%.6g")
+        values[values["metric"] == name].drop(columns="metric").to_csv(
+            out / f"{slug}_values.csv", index=False, float_format="%.6g")
+        only = dataclasses.replace(res, metric_rows=[r for r in res.metric_rows
+                                                     if r["metric"] == name])
+        titles = mine.merge(metric_table(only), on=["task", "agent", "metric"], how="left")
+        metric_vs_return(only, out / "figures" / f"{slug}_vs_return.png", titles)
     return out

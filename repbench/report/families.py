@@ -89,3 +89,16 @@ def _families(res: Any) -> dict[str, str]:
     for r in res.metric_rows:
         families.setdefault(r["encoder"], _family(r["encoder"]))
     return families
+
+
+def learned_encoders(res: Any) -> dict[str, list[str]]:
+    """task → the learned encoders (plugin family not ``baseline``) with metric records in
+    ``res``, sorted: the encoders the within-learned statistics are over."""
+    from repbench.analysis.correlation import BASELINE_FAMILY
+
+    families = _families(res)
+    out: dict[str, set[str]] = {}
+    for r in res.metric_rows:
+        if families.get(r["encoder"], "learned") != BASELINE_FAMILY:
+            out.setdefault(r["task"], set()).add(r["encoder"])
+    return {t: sorted(e) for t, e in sorted(out.items())}

@@ -7,7 +7,14 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from repbench.analysis.metric_search import compare_on, loo_rank_model, nested_selection
+from repbench.analysis.metric_search import (
+    compare_on,
+    loo_rank_model,
+    loo_rmse,
+    nested_selection,
+    reference_gaps,
+    transfer_model,
+)
 
 
 def _table(n: int = 24, seed: int = 0) -> pd.DataFrame:
@@ -55,3 +62,43 @@ def test_paired_comparison_separates_a_perfect_metric_from_noise():
     assert out["rho_selected"] > 0.95 and out["difference_ci"][0] > 0.3
     same = compare_on(values, per_seed, "a", "a", n_bootstrap=100)
     assert same["difference_ci"] == (0.0, 0.0)
+
+
+def test_a_model_fitted_on_one_task_ranks_another_by_ranks_not_scales():
+    rng = np.random.default_rng(6)
+    train = rng.normal(size=(20, 2))
+    y = 2 * stats.rankdata(train[:, 0]) + stats.rankdata(train[:, 1])
+    test = np.column_stack([1000 + 50 * rng.normal(size=15), -3 + 0.01 * rng.normal(size=15)])
+    pred = transfer_model(train, y, test)  # other scales: only the ranks carry over
+    truth = 2 * stats.rankdata(test[:, 0]) + stats.rankdata(test[:, 1])
+    assert np.corrcoef(pred, truth)[0, 1] == pytest.approx(1.0)  # linear in the test ranks
+    one = transfer_model(train[:, 0], y, test[:, 0])  # one column, as a 1-D array
+    assert stats.spearmanr(one, test[:, 0]).statistic == pytest.approx(1.0)
+
+
+def test_loo_rmse_of_a_return_linear_in_the_ranks_is_under_one_rank_step_and_grows_with_noise():
+    x = np.arange(30.0)
+    exact = loo_rmse(x, 5 * x + 2)  # a held-out encoder is placed among the other 29: its
+    assert 0 < exact < 5  # prediction is off by less than one rank step (5)
+    noisy = loo_rmse(np.random.default_rng(0).permutation(x), 5 * x + 2)
+    assert noisy > 5 * exact
+
+
+def _record(task, enc, seed, weights):
+    return {"kind": "rl", "task": {"name": task}, "encoder": {"name": enc},
+            "agent": {"name": "sac"}, "seed": seed, "encoder_weights": weights}
+
+
+def test_reference_gaps_name_missing_latents_and_seeds_of_other_weights():
+    sets = [{"task": "T", "encoder": "a", "encoder_weights": "w1"},
+            {"task": "T", "encoder": "b", "encoder_weights": "w2"}]
+    rl = ([_record("T", "a", s, "w1") for s in range(3)]
+          + [_record("T", "b", 0, "w2"), _record("T", "b", 1, "old"), _record("T", "b", 2, "old")])
+    learned = {"T": ["a", "b", "c"]}
+    assert reference_gaps(sets, rl, learned) == [
+        "T b: 1 of 3 sac seeds of the shipped weights (2 of other weights)",
+        "T c: no shipped latents"]
+    rl += [_record("T", "b", s, "w2") for s in (1, 2)]
+    sets.append({"task": "T", "encoder": "c", "encoder_weights": "w3"})
+    rl += [_record("T", "c", s, "w3") for s in range(3)]
+    assert reference_gaps(sets, rl, learned) == []
