@@ -17,6 +17,7 @@ rank the encoders reliably when r₁'s interval lies above it.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Mapping
 from typing import Any
@@ -105,8 +106,17 @@ def ceilings(rl_rows: Any, families: Mapping[str, str], *, n_bootstrap: int = 10
             continue
         returns.setdefault((r["task"], r["agent"]), {}).setdefault(r["encoder"], {})[
             r.get("seed")] = float(r["eval_return"])
-    return {key: noise_ceiling(per, n_bootstrap=n_bootstrap, seed=seed)
+    return {key: dict(_cached_ceiling(tuple((e, tuple(v.items())) for e, v in per.items()),
+                                      n_bootstrap, seed))  # in the rows' order, as resampled
             for key, per in sorted(returns.items())}
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_ceiling(per: tuple[tuple[str, tuple[tuple[Any, float], ...]], ...],
+                    n_bootstrap: int, seed: int) -> dict[str, Any]:
+    """:func:`noise_ceiling` of one task × agent's returns, computed once per board: the metric
+    ranking and the robustness checks both ask for it."""
+    return noise_ceiling({e: dict(v) for e, v in per}, n_bootstrap=n_bootstrap, seed=seed)
 
 
 def ceiling_check(task: str, agent: str, out: Mapping[str, Any]) -> Any:
