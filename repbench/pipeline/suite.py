@@ -77,10 +77,10 @@ def check_bootstrap(n: int, key: str = "", allow_none: bool = False) -> int:
 
 def check_suite_name(name: str) -> str:
     """``name`` if it is a valid suite name (:data:`SUITE_NAME`), else ValueError saying why."""
-    if not SUITE_NAME.match(name) or ".." in name or name == ".":
+    if not SUITE_NAME.match(name) or ".." in name or name.startswith("."):
         raise ValueError(f"suite name {name!r} must be a folder name: letters, digits, '_', '-' "
-                         "and '.', not '.' and without '..' (its board goes to "
-                         "leaderboards/<name>); "
+                         "and '.', not starting with '.' (a hidden folder) and without '..' (its "
+                         "board goes to leaderboards/<name>); "
                          "rename it, e.g. name = \"my_suite\"")
     return name
 

@@ -201,10 +201,11 @@ def test_suite_file_with_a_bom_and_bad_bytes_names_the_right_line(
     assert f"suite file {path} is not UTF-8 text (byte 0xe9 on line 2); save it as UTF-8" in err
 
 
-@pytest.mark.parametrize("name", [".", "...", "a\\\\b"])
+@pytest.mark.parametrize("name", [".", "...", "a\\\\b", ".hidden"])
 def test_suite_name_dot_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path,
                                    name: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Before: name = "." wrote its board into leaderboards/ itself."""
+    """Before: name = "." wrote its board into leaderboards/ itself (".hidden": into a hidden
+    folder)."""
     from repbench.pipeline.runner import default_out_dir
 
     monkeypatch.chdir(tmp_path)
