@@ -1,6 +1,9 @@
 """Import paths of modules that moved into ``repbench.pipeline``, ``repbench.analysis`` and
 ``repbench.report`` keep working: ``import repbench.store`` gives ``repbench.pipeline.store``
-(the same module object) with a :class:`DeprecationWarning` naming the new path."""
+(the same module object) with a :class:`DeprecationWarning` naming the new path.
+
+``repbench.records`` is no such path any more: the record format moved back down to it (the
+real module :mod:`repbench.records`; ``repbench.pipeline.records`` re-exports it)."""
 
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ from types import ModuleType
 #: old module name (under ``repbench.``) → its subpackage
 MOVED: dict[str, str] = {
     **dict.fromkeys(["suite", "plan", "stages", "store", "executors", "runner", "preflight",
-                     "diskfull", "records", "evaluate"], "pipeline"),
+                     "diskfull", "evaluate"], "pipeline"),
     **dict.fromkeys(["results", "correlation", "claims", "calibration"], "analysis"),
     **dict.fromkeys(["leaderboard", "figures", "report_html"], "report"),
 }

@@ -1,6 +1,6 @@
 """Results are the source of truth: read result records and turn them into leaderboard rows.
 
-Records (:mod:`repbench.pipeline.records`) come from a stage store or from a folder of JSON files
+Records (:mod:`repbench.records`) come from a stage store or from a folder of JSON files
 (the reference records shipped in ``leaderboards/<suite>/records/``). This module knows nothing of
 suites' plans: :func:`select` keeps the records whose identities a caller asks for, and
 :func:`build_results` is a pure function of the records it is given (plus the installed plugin
@@ -10,31 +10,27 @@ versions, to mark older records *stale*). The leaderboard tables and pages are c
 
 from __future__ import annotations
 
-import json
 import logging
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from os import PathLike
 from pathlib import Path
 from typing import Any
 
 from repbench.errors import RepbenchError
-from repbench.pipeline.records import (
+from repbench.records import (
     CHECKSUM,
     PLUGIN_PARTS,
-    RECORD_FILE,
-    RERUN,
+    RECORD_STAGES,
     inspect_record,
+    is_store_root,
     mixed_encoder_weights,
     plugin_version,
+    store_record_files,
+    store_record_problem,
     value_problem,
     versions_of,
-)
-from repbench.pipeline.store import (
-    META,
-    RECORD_STAGES,
-    Store,
-    file_sha256,
-    holds_exported_records,
+    write_record,
 )
 from repbench.registry import REGISTRIES
 
@@ -81,30 +77,33 @@ class Results:
 
 def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS,
                  problems: list[str] | None = None) -> list[dict[str, Any]]:
-    """Every sound record in ``sources``: a :class:`repbench.pipeline.store.Store`, a store root,
-    or a folder of record JSON files (searched recursively).
+    """Every sound record in ``sources``: a :class:`repbench.pipeline.store.Store` (or any
+    object with the store's folder as its ``root``), a store root, or a folder of record JSON
+    files (searched recursively).
 
-    Each record is checked (:func:`repbench.pipeline.records.inspect_record`: valid JSON, its own
-    checksum; in a store also the checksum the artifact's ``meta.json`` holds for it). A record
-    that fails is left out with a one-line warning naming the file and why (logged, and
-    appended to ``problems`` when given), never published.
+    Each record is checked (:func:`repbench.records.inspect_record`: valid JSON, its own
+    checksum; in a store also the checksum the artifact's ``meta.json`` holds for it,
+    :func:`repbench.records.store_record_problem`). A record that fails is left out with a
+    one-line warning naming the file and why (logged, and appended to ``problems`` when given),
+    never published.
     """
     out: list[dict[str, Any]] = []
     kinds = tuple(kinds)
     for source in sources:
-        root = source.root if isinstance(source, Store) else Path(source)
-        in_store = isinstance(source, Store) or (
-            (root / ".tmp").is_dir() and not holds_exported_records(root))
+        # a Store is read by its folder (no import of the pipeline: the flow is one way); a
+        # path is no store object, though a Path has a ``root`` ("/") too
+        is_store_object = not isinstance(source, (str, PathLike)) and hasattr(source, "root")
+        root = Path(source.root) if is_store_object else Path(source)
+        in_store = is_store_object or is_store_root(root)
         if in_store:  # a stage store
-            paths: Iterable[Path] = (p for k in kinds for p in sorted((root / k).glob(
-                f"*/{RECORD_FILE}")))
+            paths: Iterable[Path] = store_record_files(root, kinds)
         else:
             paths = sorted(root.rglob("*.json")) if root.is_dir() else []
         unchecked = 0
         for path in paths:
             record, problem = inspect_record(path)
             if problem is None and record is not None and in_store:
-                problem = _store_problem(path)
+                problem = store_record_problem(path)
             if problem is not None:
                 log.warning("%s", problem)
                 if problems is not None:
@@ -117,20 +116,6 @@ def load_records(*sources: Any, kinds: Iterable[str] = RECORD_KINDS,
             log.warning("%d records in %s carry no checksum (record schema 1, written before "
                         "records had one): read unchecked", unchecked, root)
     return out
-
-
-def _store_problem(path: Path) -> str | None:
-    """Why the record file ``path`` of a stored artifact fails the checksum its artifact's
-    ``meta.json`` holds for it (None: it passes)."""
-    meta_path = path.parent / META
-    try:
-        digest = json.loads(meta_path.read_text()).get("files", {}).get(path.name)
-    except (OSError, ValueError, AttributeError):
-        return (f"record {path} belongs to an artifact without a readable {META}: left out; "
-                f"{RERUN}")
-    if digest != file_sha256(path):
-        return f"record {path} fails its checksum (edited or corrupt): left out; {RERUN}"
-    return None
 
 
 def installed_versions(records: Iterable[Mapping[str, Any]]) -> dict[tuple[str, str], int]:
@@ -191,7 +176,7 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
     """The leaderboard's rows from ``records`` (a pure function of its arguments).
 
     A metric record whose value cannot be published (not a finite number, or outside its own
-    interval: :func:`repbench.pipeline.records.value_problem`) is left out with a warning
+    interval: :func:`repbench.records.value_problem`) is left out with a warning
     naming its file, in the log and on the page, like a record that fails its checksum.
 
     ``suite`` (optional) adds the suite's description and settings to the provenance;
@@ -339,11 +324,9 @@ def write_records(records: Iterable[Mapping[str, Any]], folder: Path) -> list[Pa
     """Write ``records`` as ``folder/<kind>/<task>.<encoder>.<metric|agent>.s<seed>-<id>.json``
     (replacing the folder's earlier records): the shippable form of a leaderboard's results.
 
-    Only sound repbench records (:func:`~repbench.pipeline.records.inspect_record`) are replaced:
+    Only sound repbench records (:func:`~repbench.records.inspect_record`) are replaced:
     any other file in ``folder`` (a user's notes, an analysis, an edited or damaged record) is
     not repbench's to delete and stays where it is."""
-    from repbench.pipeline.records import write_record
-
     folder = Path(folder)
     if folder.is_dir():
         for old in folder.rglob("*.json"):

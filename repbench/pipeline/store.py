@@ -14,12 +14,18 @@ Two runs may share a store: a stage is computed under its lock ``<root>/<stage>/
 first is computing and then reuses it. The kernel releases the lock when its holder dies, so a
 lock left by a killed process never blocks. A temporary folder whose stage lock is free was left
 by a killed writer; :meth:`Store.clean_tmp` removes it (every run does, before it starts).
+
+Reading a store's records needs none of this module: the store's layout that readers rely on
+(:data:`~repbench.records.META`, :data:`~repbench.records.RECORD_STAGES`,
+:func:`~repbench.records.file_sha256`, :func:`~repbench.records.holds_exported_records`) lives in
+:mod:`repbench.records`, the provenance every artifact carries (``cpu_model``, ``git_commit``,
+``library_versions``, ``source_commit``) in :mod:`repbench.provenance`; both are importable from
+here as before.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import hashlib
 import json
 import logging
@@ -27,7 +33,6 @@ import os
 import platform
 import re
 import shutil
-import subprocess
 import threading
 import time
 import uuid
@@ -37,6 +42,10 @@ from pathlib import Path
 from typing import Any
 
 from repbench.errors import CorruptArtifactError, StoreError
+from repbench.provenance import cpu_model, git_commit, library_versions
+from repbench.provenance import source_commit as source_commit  # re-exported (it lived here)
+from repbench.records import META, file_sha256, holds_exported_records
+from repbench.records import RECORD_STAGES as RECORD_STAGES  # re-exported (it lived here)
 
 try:
     import fcntl
@@ -46,23 +55,12 @@ except ImportError:  # pragma: no cover (Windows: no stage locks)
 log = logging.getLogger(__name__)
 
 STORE_ENV_VAR = "REPBENCH_STORE"
-#: the stages whose artifacts hold a result record (a records folder has one subfolder each)
-RECORD_STAGES = ("dataset", "full_state_agent", "diagnostics", "encoder", "latents", "metric",
-                 "rl")
-META = "meta.json"
 STORE_FORMAT = 1
 LOCK_SUFFIX = ".lock"
 #: ``<stage>-<key>-<pid>-<tag>``: the name :meth:`Store.write` gives a temporary folder
 _TMP_NAME = re.compile(r"^(?P<stage>.+)-(?P<key>[^-]+)-(?P<pid>\d+)-(?P<tag>[0-9a-f]{8})$")
 #: stage locks this process holds: (lock path, thread id) → [file descriptor, depth]
 _HELD: dict[tuple[str, int], list[int]] = {}
-
-
-def holds_exported_records(root: Path) -> bool:
-    """Whether ``root`` is a folder of exported records (``<stage>/<name>.json``, as a
-    leaderboard's ``records/``) rather than a stage store (``<stage>/<key>/`` folders)."""
-    return root.is_dir() and any(p.is_file() for stage in RECORD_STAGES
-                                 for p in (root / stage).glob("*.json"))
 
 
 def default_store_root() -> Path:
@@ -91,69 +89,6 @@ def stage_key(stage: str, config: Mapping[str, Any], inputs: Sequence[str] = ())
     payload = canonical_json({"stage": stage, "config": config, "inputs": list(inputs),
                               "format": STORE_FORMAT})
     return hashlib.sha256(payload.encode()).hexdigest()[:32]
-
-
-def file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-@functools.lru_cache(maxsize=1)
-def library_versions() -> dict[str, str]:
-    """Versions of the libraries that shape results."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = {"python": platform.python_version()}
-    for dist in ("repbench", "numpy", "torch", "scipy", "scikit-learn", "pandas", "mujoco",
-                 "robosuite", "gymnasium", "stable-baselines3"):
-        with contextlib.suppress(PackageNotFoundError):
-            out[dist] = version(dist)
-    return out
-
-
-@functools.lru_cache(maxsize=1)
-def cpu_model() -> str:
-    """The CPU's model name (``/proc/cpuinfo``'s ``model name``, else
-    :func:`platform.processor`, else the machine type). Float results of one code and one set of
-    library versions can differ across CPUs (torch and numpy pick kernels by instruction set),
-    so every record says which CPU made it; it is no library version and is kept apart."""
-    with contextlib.suppress(OSError), open("/proc/cpuinfo") as f:
-        for line in f:
-            name, sep, value = line.partition(":")
-            if sep and value.strip() and name.strip() in ("model name", "Model", "Processor",
-                                                          "cpu model"):
-                return " ".join(value.split())
-    return platform.processor() or platform.machine() or "unknown"
-
-
-@functools.lru_cache(maxsize=1)
-def git_commit() -> str | None:
-    """The git commit of the repbench code that runs: HEAD of the checkout the installed
-    ``repbench`` package lives in (a source tree or an editable install); None when it lives in
-    none (installed from a wheel). Never the commit of the folder the command runs in."""
-    return source_commit(Path(__file__).resolve().parents[1])
-
-
-def source_commit(package_dir: Path) -> str | None:
-    """HEAD of the git checkout that tracks ``package_dir/__init__.py``; None when no checkout
-    does (not a checkout, or an untracked folder inside someone else's, like a virtual
-    environment's site-packages inside a user's project)."""
-    env = {k: v for k, v in os.environ.items() if not k.startswith("GIT_")}
-
-    def git(*args: str) -> str | None:
-        try:
-            out = subprocess.run(["git", "-C", str(package_dir), *args], capture_output=True,
-                                 text=True, timeout=5, check=False, env=env)
-        except (OSError, subprocess.SubprocessError):
-            return None
-        return out.stdout.strip() or None if out.returncode == 0 else None
-
-    if git("ls-files", "--error-unmatch", "--", "__init__.py") is None:
-        return None
-    return git("rev-parse", "HEAD")
 
 
 @dataclass(frozen=True)

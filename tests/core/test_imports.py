@@ -14,9 +14,9 @@ PACKAGE = Path(__file__).resolve().parents[2] / "repbench"
 
 #: The core layer, bottom to top.
 CORE = ["errors", "references", "dataset", "devices", "encoder", "task", "agent", "metric_types",
-        "registry", "metric", "gym_envs", "pipeline.store", "pipeline.suite", "pipeline.stages",
-        "pipeline.plan", "pipeline.executors", "analysis.correlation", "report.leaderboard",
-        "pipeline.runner", "cli"]
+        "registry", "metric", "gym_envs", "provenance", "records", "pipeline.store",
+        "pipeline.suite", "pipeline.stages", "pipeline.plan", "pipeline.executors",
+        "analysis.correlation", "analysis.results", "report.leaderboard", "pipeline.runner", "cli"]
 
 
 def _modules() -> dict[str, Path]:
@@ -39,6 +39,64 @@ def _imports(path: Path, known: set[str]) -> set[str]:
         elif isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
     return {m for m in found if m in known and m != "repbench"}
+
+
+def _imported_names(path: Path) -> list[tuple[ast.stmt, list[str]]]:
+    """Every import statement in ``path`` (top level and inside functions) with the modules it
+    may import: for ``from X import a`` both ``X`` and ``X.a`` (``a`` may be a submodule),
+    relative imports resolved, and an old path that ``repbench._moved`` redirects
+    (``repbench.store``) named by the module it gives (``repbench.pipeline.store``)."""
+    from repbench._moved import MOVED
+
+    package = list(path.relative_to(PACKAGE.parent).with_suffix("").parts[:-1])
+    out: list[tuple[ast.stmt, list[str]]] = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            module = ".".join([*base, *(node.module or "").split(".")]).strip(".")
+            names = [module, *(f"{module}.{alias.name}" for alias in node.names)]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for i, name in enumerate(names):
+            head, _, rest = name.partition(".")
+            old, _, tail = rest.partition(".")
+            if head == "repbench" and old in MOVED:
+                names[i] = ".".join(filter(None, ["repbench", MOVED[old], old, tail]))
+        out.append((node, names))
+    return out
+
+
+def _imports_from(files: list[Path], banned: tuple[str, ...]) -> list[str]:
+    """``<file>:<line>: <import statement>`` for every import in ``files`` of a module in (or
+    under) one of the packages ``banned``."""
+    return [f"{path.relative_to(PACKAGE.parent)}:{node.lineno}: {ast.unparse(node)}"
+            for path in files for node, names in _imported_names(path)
+            if any(n == b or n.startswith(f"{b}.") for n in names for b in banned)]
+
+
+#: Modules below both the pipeline and the analysis: the record format and the reading of
+#: records, and the provenance a record carries.
+RECORD_CORE = ["records.py", "provenance.py"]
+
+
+def test_analysis_never_imports_the_pipeline() -> None:
+    """The flow is one way: the pipeline writes records and uses the analysis; the analysis
+    reads records (:mod:`repbench.records`) and imports nothing of ``repbench.pipeline``, at
+    top level or inside a function."""
+    files = sorted((PACKAGE / "analysis").rglob("*.py"))
+    assert files
+    found = _imports_from(files, ("repbench.pipeline",))
+    assert not found, "repbench/analysis imports the pipeline:\n" + "\n".join(found)
+
+
+def test_record_core_imports_no_upper_layer() -> None:
+    """:mod:`repbench.records` and :mod:`repbench.provenance` lie below the pipeline, the
+    analysis and the report: they import none of them."""
+    files = [PACKAGE / name for name in RECORD_CORE]
+    found = _imports_from(files, ("repbench.pipeline", "repbench.analysis", "repbench.report"))
+    assert not found, "the record core imports an upper layer:\n" + "\n".join(found)
 
 
 def test_no_import_cycle_in_the_package() -> None:

@@ -166,3 +166,34 @@ def test_a_records_folder_is_refused_as_a_store_and_still_read(tmp_path: Path) -
     assert not (records / ".tmp").exists()  # nothing written
     (records / ".tmp").mkdir()  # left by an older version
     assert [r["kind"] for r in load_records(records)] == ["rl"]
+
+
+@pytest.mark.parametrize("source", ["store", "path", "str", "duck"])
+def test_records_are_read_alike_from_a_store_or_its_folder(tmp_path: Path, source: str) -> None:
+    """The analysis reads a store's records without the pipeline's code: a :class:`Store`, any
+    object with the store's folder as ``root``, or the folder itself (a ``Path``, whose own
+    ``root`` is "/", or a string) give the same records, each checked against its artifact's
+    ``meta.json`` (a record rewritten in other whitespace keeps its own checksum but not the
+    store's)."""
+    import json
+    from types import SimpleNamespace
+
+    from repbench.analysis.results import load_records
+    from repbench.records import RECORD_FILE, make_record, write_record
+
+    store = Store(tmp_path / "st")
+    for key in ("sound", "rewritten"):
+        with store.write("metric", key, config={}) as w:
+            record = make_record({"kind": "metric", "task": {"name": "T", "version": 0,
+                                                             "params": {}}},
+                                 {"value": 0.5}, stage={"key": key}, timings={})
+            write_record(record, w.file(RECORD_FILE))
+    rewritten = store.root / "metric" / "rewritten" / RECORD_FILE
+    rewritten.write_text(json.dumps(json.loads(rewritten.read_text()), indent=3))
+    given = {"store": store, "path": store.root, "str": str(store.root),
+             "duck": SimpleNamespace(root=str(store.root))}[source]
+    problems: list[str] = []
+    records = load_records(given, problems=problems)
+    assert [r["stage"]["key"] for r in records] == ["sound"]
+    assert problems == [f"record {rewritten} fails its checksum (edited or corrupt): left out; "
+                        "rerun the stage with `repbench run`"]
