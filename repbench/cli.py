@@ -6,13 +6,11 @@ exit with code 2; a traceback means a bug in repbench or a plugin.
 
 from __future__ import annotations
 
-import contextlib
 import inspect
 import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -43,45 +41,6 @@ OutOpt = Annotated[
     Optional[str],  # noqa: UP045
     typer.Option("--out", help="Leaderboard folder (default: leaderboards/<suite>)."),
 ]
-
-
-@contextlib.contextmanager
-def _no_store_left_by_a_refusal(store: str | None) -> Iterator[None]:
-    """When a refusal (a :class:`RepbenchError`) ends the command while the store folder it
-    created holds no file, remove that folder again, and the missing folders above it it made:
-    ``repbench run --suite bad.toml --store /tmp/newstore`` left an empty /tmp/newstore (the
-    store is opened, and its folder made, before the plan's checks). A folder that was there
-    before, or that holds a file, is never touched."""
-    from repbench.pipeline.store import default_store_root
-
-    if store is not None and not store.strip():  # refused by Store itself, nothing made
-        yield
-        return
-    root = (Path(store).expanduser() if store is not None else default_store_root()).absolute()
-    created = []  # the folders this command may make, deepest first
-    folder = root
-    while not os.path.lexists(folder) and folder != folder.parent:
-        created.append(folder)
-        folder = folder.parent
-    try:
-        yield
-    except RepbenchError:
-        if created and not _holds_a_file(root):
-            for path in created:
-                _remove_empty_folders(path)
-        raise
-
-
-def _holds_a_file(folder: Path) -> bool:
-    return any(files or any(os.path.islink(os.path.join(top, d)) for d in dirs)
-               for top, dirs, files in os.walk(folder))
-
-
-def _remove_empty_folders(folder: Path) -> None:
-    """Remove ``folder`` and the folders below it, deepest first, where they are empty."""
-    for top, _, _ in os.walk(folder, topdown=False):
-        with contextlib.suppress(OSError):
-            os.rmdir(top)
 
 
 @app.command("list")
@@ -147,9 +106,8 @@ def run(
     """
     from repbench.pipeline.runner import run_suite
 
-    with _no_store_left_by_a_refusal(store):
-        result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
-                           ray_address=ray_address, no_rl=no_rl, tasks=task or None)
+    result = run_suite(suite, store=store, out=out, executor=executor, workers=workers,
+                       ray_address=ray_address, no_rl=no_rl, tasks=task or None)
     typer.echo(f"leaderboards written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)
@@ -187,10 +145,9 @@ def leaderboard(
     for folder in records or []:
         if not folder.is_dir():
             raise RepbenchError(f"records folder {folder} does not exist")
-    with _no_store_left_by_a_refusal(store):
-        out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records or None,
-                                       longer=longer, agent_run=agent_run,
-                                       predictions=predictions, copy_records=copy_records)
+    out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records or None,
+                                   longer=longer, agent_run=agent_run,
+                                   predictions=predictions, copy_records=copy_records)
     typer.echo(f"leaderboards written to {out_dir}")
 
 
@@ -223,10 +180,9 @@ def evaluate(
     """
     from repbench.pipeline.evaluate import evaluate_encoder
 
-    with _no_store_left_by_a_refusal(store):
-        result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store,
-                                  out=out, reference=reference or None, workers=workers,
-                                  tasks=task or None)
+    result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store,
+                              out=out, reference=reference or None, workers=workers,
+                              tasks=task or None)
     typer.echo(f"leaderboard written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)

@@ -36,7 +36,7 @@ from repbench.pipeline.preflight import check_dataset_sizes, check_out_dir
 from repbench.pipeline.records import identity_key
 from repbench.pipeline.runner import cap_local_workers, records_of_suite, suite_on_tasks
 from repbench.pipeline.stages import RL
-from repbench.pipeline.store import Store
+from repbench.pipeline.store import Store, leaves_no_store_on_refusal
 from repbench.pipeline.suite import load_suite
 from repbench.references import is_reference
 from repbench.registry import encoders
@@ -131,6 +131,7 @@ def _folder_name(encoder: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in f"{stem}-{attr}")
 
 
+@leaves_no_store_on_refusal
 def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only: bool = False,
                      store: str | Path | None = None, out: str | Path | None = None,
                      reference: str | Path | Sequence[str | Path] | None = None,

@@ -29,7 +29,7 @@ from repbench.pipeline.plan import Plan, build_plan
 from repbench.pipeline.preflight import check_dataset_sizes, check_out_dir
 from repbench.pipeline.records import identity_key
 from repbench.pipeline.stages import RL
-from repbench.pipeline.store import Store
+from repbench.pipeline.store import Store, leaves_no_store_on_refusal
 from repbench.pipeline.suite import BUILTIN_SUITES, Suite, check_suite_name, load_suite
 from repbench.report.leaderboard import write_leaderboards
 
@@ -71,6 +71,7 @@ def suite_on_tasks(suite: Suite, tasks: Sequence[str] | None) -> Suite:
     return suite.only_tasks(list(dict.fromkeys(tasks)))
 
 
+@leaves_no_store_on_refusal
 def run_suite(suite: str | Path, *, store: str | Path | None = None, out: str | Path | None = None,
               executor: str = "local", workers: int | None = None,
               ray_address: str | None = None, progress: bool = True,
@@ -332,6 +333,7 @@ def longer_results(folder: str | Path, base: Results) -> Results:
     return longer
 
 
+@leaves_no_store_on_refusal
 def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          out: str | Path | None = None,
                          records: str | Path | Sequence[str | Path] | None = None,

@@ -26,7 +26,9 @@ here as before.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
+import inspect
 import json
 import logging
 import os
@@ -36,12 +38,12 @@ import shutil
 import threading
 import time
 import uuid
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from repbench.errors import CorruptArtifactError, StoreError
+from repbench.errors import CorruptArtifactError, RepbenchError, StoreError
 from repbench.provenance import cpu_model, git_commit, library_versions
 from repbench.provenance import source_commit as source_commit  # re-exported (it lived here)
 from repbench.records import META, file_sha256, holds_exported_records
@@ -372,3 +374,56 @@ def _fsync_dir(path: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+@contextlib.contextmanager
+def no_store_left_by_a_refusal(store: str | Path | None) -> Iterator[None]:
+    """When a refusal (a :class:`~repbench.errors.RepbenchError`) ends the block while the store
+    folder it created holds no file, remove that folder again, and the missing folders above it
+    that it made: ``repbench run --suite bad.toml --store /tmp/newstore`` left an empty
+    /tmp/newstore (the store is opened, and its folder made, before the plan's checks). A folder
+    that was there before, or that holds a file, is never touched. ``store`` as the entry
+    points take it (a path, or None for :func:`default_store_root`); a :class:`Store` object
+    was made by the caller and is left alone."""
+    if isinstance(store, Store) or (isinstance(store, str) and not store.strip()):
+        yield  # made by the caller, or refused by Store itself: nothing made here
+        return
+    root = (Path(store).expanduser() if store is not None else default_store_root()).absolute()
+    created = []  # the folders this block may make, deepest first
+    folder = root
+    while not os.path.lexists(folder) and folder != folder.parent:
+        created.append(folder)
+        folder = folder.parent
+    try:
+        yield
+    except RepbenchError:
+        if created and not _holds_a_file(root):
+            for path in created:
+                _remove_empty_folders(path)
+        raise
+
+
+def leaves_no_store_on_refusal(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Decorate an entry point that takes ``store``: :func:`no_store_left_by_a_refusal` around
+    every call, from the command line or from Python."""
+    sig = inspect.signature(fn)
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        bound = sig.bind_partial(*args, **kwargs)
+        with no_store_left_by_a_refusal(bound.arguments.get("store")):
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+def _holds_a_file(folder: Path) -> bool:
+    return any(files or any(os.path.islink(os.path.join(top, d)) for d in dirs)
+               for top, dirs, files in os.walk(folder))
+
+
+def _remove_empty_folders(folder: Path) -> None:
+    """Remove ``folder`` and the folders below it, deepest first, where they are empty."""
+    for top, _, _ in os.walk(folder, topdown=False):
+        with contextlib.suppress(OSError):
+            os.rmdir(top)

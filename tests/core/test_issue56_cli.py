@@ -306,6 +306,23 @@ def test_a_refused_run_leaves_no_store_folder(capsys: pytest.CaptureFixture[str]
     assert not (tmp_path / "a").exists()
 
 
+def test_a_refusal_from_python_leaves_no_store_folder(tmp_path: Path) -> None:
+    """Before: the clean-up lived in the command line only; ``run_suite`` and
+    ``evaluate_encoder`` called from Python left the empty store folder they made."""
+    from repbench.errors import RepbenchError
+    from repbench.pipeline.evaluate import evaluate_encoder
+    from repbench.pipeline.runner import run_suite
+
+    store = tmp_path / "a" / "newstore"
+    with pytest.raises(RepbenchError):
+        run_suite(_bad_params(tmp_path), store=store, out=tmp_path / "lb", workers=1)
+    assert not (tmp_path / "a").exists()
+    with pytest.raises(RepbenchError):
+        evaluate_encoder("random", _suite(tmp_path), store=str(store), out=tmp_path / "ev",
+                         reference=tmp_path / "no-such-records", workers=1)
+    assert not (tmp_path / "a").exists()
+
+
 def test_a_refusal_keeps_a_store_that_was_there(capsys: pytest.CaptureFixture[str],
                                                 tmp_path: Path) -> None:
     store = tmp_path / "oldstore"
