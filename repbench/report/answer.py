@@ -193,15 +193,68 @@ def _return_matrix(encoders_df: pd.DataFrame, fmt: Any) -> list[str]:
             f"</th>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"]
 
 
+#: The two readers the opening sentence speaks to: (group of ``metrics.csv``, who, what it reads).
+READERS = (("privileged", "A simulator user",
+            "the simulator's state"),
+           ("observable", "A real-robot user",
+            "only what a robot logs: observations, robot state, actions and rewards"))
+
+
+def _best_of_group(grp: pd.DataFrame) -> dict[str, Any] | None:
+    grp = grp[grp["spearman_learned"].notna()]
+    if grp.empty:
+        return None
+    return grp.sort_values("spearman_learned", ascending=False).iloc[0].to_dict()
+
+
+def _said(r: dict[str, Any], task: str, agent: str, agents: int) -> str:
+    where = f"{html.escape(task)}" + (f" ({html.escape(agent)})" if agents > 1 else "")
+    share = r.get("of_ceiling")
+    share_said = f", {float(share):.0%} of the noise ceiling" \
+        if share is not None and math.isfinite(float(share)) else ""
+    holm = r.get("spearman_learned_p_holm")
+    predicts = holm is not None and math.isfinite(float(holm)) and float(holm) < 0.05
+    return (f"on {where} <code>{html.escape(str(r['metric']))}</code>, ρ "
+            f"{float(r['spearman_learned']):.2f} [{float(r['spearman_learned_ci_low']):.2f}, "
+            f"{float(r['spearman_learned_ci_high']):.2f}]{share_said}"
+            + ("" if predicts else " — not significant: no metric of this kind is shown to "
+               "predict there"))
+
+
+def opening_sentence(ranking: pd.DataFrame | None) -> str:
+    """The answer in words, from ``metrics.csv``'s rows: per reader (:data:`READERS`), the
+    metric of their group with the largest within-learned ρ on each task × agent, its interval
+    and share of the noise ceiling; a group with no metric on the board is said to be absent.
+    Empty without a ranking."""
+    if ranking is None or ranking.empty or "group" not in ranking:
+        return ""
+    agents = ranking["agent"].nunique()
+    parts = []
+    for group, who, reads in READERS:
+        mine = ranking[ranking["group"] == group]
+        said = [_said(best, str(task), str(agent), agents)
+                for (task, agent), grp in mine.groupby(["task", "agent"], sort=True)
+                if (best := _best_of_group(grp)) is not None]
+        if said:
+            parts.append(f"<b>{who}</b> (metrics that read {reads}) should use: "
+                         + "; ".join(said) + ".")
+        else:
+            parts.append(f"<b>{who}</b> (metrics that read {reads}) has no metric on this "
+                         "board yet.")
+    return "<p class='lede' id='answer-words'>" + " ".join(parts) + "</p>"
+
+
 def answer_section(claims: pd.DataFrame | None, checks: pd.DataFrame | None,
-                   encoders_df: pd.DataFrame, figures: dict[str, Path]) -> list[str]:
-    """The page's first section, ``<section id="answer">``; empty before any correlation."""
+                   encoders_df: pd.DataFrame, figures: dict[str, Path],
+                   ranking: pd.DataFrame | None = None) -> list[str]:
+    """The page's first section, ``<section id="answer">``; empty before any correlation.
+    With ``ranking`` (``metrics.csv``'s rows) it opens with :func:`opening_sentence`."""
     rows = [] if claims is None or claims.empty else _metric_rows(
         claims, _fmt2, _VERDICT_COLORS, ceiling_rows(checks))
     if not rows:
         return []
     paper_heads = "".join(f"<th class='txt'>{name}</th>" for name, _ in PAPER_METRICS)
-    out = ["<section id='answer'><h2>The answer</h2>",
+    out = ["<section id='answer'><h2>The answer</h2>", opening_sentence(ranking),
            "<p class='note'>Which metric predicts RL return, per task and agent: the metric "
            "with the highest Spearman ρ between its value and the mean return <b>over the "
            "learned encoders</b>, with its 95% bootstrap interval and verdict (significant = "

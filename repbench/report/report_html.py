@@ -37,6 +37,7 @@ th.sorted-asc::after{content:" ▲"}th.sorted-desc::after{content:" ▼"}
 td.txt,th.txt{text-align:left}tr:hover td{background:#fafbff}
 .ci{color:#889;font-size:11px}.fig{margin:12px 0}.fig img{max-width:100%;border:1px solid #eee}
 .note{background:#f7f7fa;border-left:3px solid #99a;padding:8px 12px;font-size:13px}
+.lede{font-size:16px;line-height:1.5;margin:8px 0 12px}
 code{background:#f2f2f6;padding:1px 4px;border-radius:3px}
 tr.stale td{color:#8a8f99;font-style:italic}
 tr.highlight td{background:#fff3c4;font-weight:600}
@@ -362,7 +363,7 @@ def render_html(res: Any, encoders_df: pd.DataFrame, metrics_df: pd.DataFrame,
         f"<h1>{html.escape(title)}</h1>",
         f"<p class='sub'>{html.escape(prov.get('description') or '')}</p>",
         *_partial_banner(res),
-        *answer_section(claims, checks, encoders_df, figures),
+        *answer_section(claims, checks, encoders_df, figures, metrics_df),
         "<p class='sub'>The detailed tables: click a heading to open it.</p>",
         *_collapsed([
         "<h2>Metric leaderboard</h2>",

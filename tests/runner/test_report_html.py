@@ -367,3 +367,38 @@ def test_compact_svg_rounds_geometry_only_and_keeps_text_and_titles() -> None:
     assert "T-v0 · ksg ↑</text>" in svg  # text as text, not glyph outlines
     assert '<g id="mvr-7"' in svg and "<title>point 7: 0.123456</title>" in svg
     assert not re.search(r'\bd="[^"]*\d\.\d{2}', svg)  # no geometry beyond 0.1 px
+
+
+def _ranking_row(task: str, metric: str, group: str, rho: float, holm: float) -> dict:
+    return {"task": task, "agent": "sac", "metric": metric, "group": group,
+            "spearman_learned": rho, "spearman_learned_ci_low": rho - 0.2,
+            "spearman_learned_ci_high": rho + 0.1, "spearman_learned_p_holm": holm,
+            "of_ceiling": rho / 0.9}
+
+
+def test_the_answer_opens_with_a_sentence_per_reader_naming_each_groups_best_metric() -> None:
+    """Issue 55: the page's answer opens in words with the metric a simulator user should use
+    and the one a real-robot user can, each with its ρ, interval and share of the ceiling."""
+    from repbench.report.answer import opening_sentence
+
+    ranking = pd.DataFrame([
+        _ranking_row("A-v0", "task_cmi", "privileged", 0.78, 0.001),
+        _ranking_row("A-v0", "ksg", "privileged", -0.2, 1.0),
+        _ranking_row("A-v0", "rankme", "observable", 0.45, 0.02),
+        _ranking_row("A-v0", "nesum", "observable", 0.30, 0.2),
+        _ranking_row("B-v0", "regression", "privileged", 0.29, 0.6),
+    ])
+    said = opening_sentence(ranking)
+    simulator, robot = said.split("A real-robot user")
+    assert ("on A-v0 <code>task_cmi</code>, ρ 0.78 [0.58, 0.88], 87% of the noise ceiling"
+            in simulator)
+    assert "ksg" not in said and "nesum" not in said  # only each group's best
+    # a best metric whose Holm p is not below 0.05 is said not to predict
+    assert "on B-v0 <code>regression</code>" in simulator and "not significant" in simulator
+    assert "on A-v0 <code>rankme</code>, ρ 0.45 [0.25, 0.55], 50% of" in robot
+    assert "not significant" not in robot
+    none = opening_sentence(ranking[ranking["group"] == "privileged"])
+    assert "A real-robot user</b> (metrics that read only what a robot logs" in none
+    assert none.endswith("has no metric on this board yet.</p>")
+    assert opening_sentence(None) == "" and opening_sentence(pd.DataFrame()) == ""
+
