@@ -1,11 +1,17 @@
 """The latents quick ships (leaderboards/quick/latents): checksummed, named by their records, and
-the built-in metrics computed from them reproduce the committed metric records exactly (issue 54).
+the built-in metrics computed from them reproduce the committed metric records exactly (issue 54)
+— to the last bit, or one bit off: a value can move by one unit in the last place from one
+process to the next on the same machine and the same files (measured: `smoothness_objective` on
+barlow_twins, −80.21817114422299 vs −80.218171144223 in its entropy term, in 1 of 12
+processes; not the hash seed, not the input's memory alignment), so the check allows
+:data:`ULPS` units in the last place and nothing more.
 
 The default run checks every shipped set's files and recomputes the cheap metrics (under 0.2 s a
 set); ``-m slow`` recomputes every metric of every set."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -17,6 +23,8 @@ from repbench.pipeline.suite import load_suite
 from repbench.registry import metrics
 
 BOARD = Path(__file__).parents[2] / "leaderboards" / "quick"
+#: Units in the last place a recomputed value may differ from its record (the docstring says why).
+ULPS = 2
 CHEAP = ("task_probe", "action_probe", "coherence", "smoothness", "smoothness_objective")
 ALL = tuple(load_suite("quick").metrics)
 
@@ -49,8 +57,9 @@ def _reproduce(names: tuple[str, ...]) -> None:
                 values = compute_on_latents(metrics.get(name), arrays, seed=record["seed"],
                                             params=params, who=name)
             for key in ("value", "ci_low", "ci_high"):
-                assert values[key] == record["values"][key], (
-                    latent_set.task, latent_set.encoder, name, key)
+                got, want = values[key], record["values"][key]
+                assert (got is want is None) or abs(got - want) <= ULPS * math.ulp(want), (
+                    latent_set.task, latent_set.encoder, name, key, got, want)
             checked += 1
     assert checked >= len(names)
 
