@@ -402,3 +402,10 @@ def test_the_answer_opens_with_a_sentence_per_reader_naming_each_groups_best_met
     assert none.endswith("has no metric on this board yet.</p>")
     assert opening_sentence(None) == "" and opening_sentence(pd.DataFrame()) == ""
 
+
+
+def test_the_shipped_quick_page_opens_its_answer_in_words() -> None:
+    board = Path(__file__).parents[2] / "leaderboards" / "quick"
+    page = (board / "index.html").read_text(encoding="utf-8")
+    start = page.index("<section id='answer'>")
+    assert page.index("id='answer-words'") < page.index("<table", start)
