@@ -172,6 +172,9 @@ def evaluate(
     task: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
         "--task", help="Only this task of the suite (repeat for several; default: all of "
         "them, e.g. quick's PegInHole-v0, SurfacePress-v0 and Door-v0).")] = None,
+    predictor: Annotated[Optional[list[str]], typer.Option(  # noqa: UP045
+        "--predictor", help="With --metrics-only: predict the return from this metric only "
+        "(repeat for several; default: the calibration picks among all of the suite's).")] = None,
 ) -> None:
     """Evaluate one encoder against a suite's reference records.
 
@@ -182,7 +185,7 @@ def evaluate(
 
     result = evaluate_encoder(encoder, suite, metrics_only=metrics_only, store=store,
                               out=out, reference=reference or None, workers=workers,
-                              tasks=task or None)
+                              tasks=task or None, predictors=predictor or None)
     typer.echo(f"leaderboard written to {result.out_dir}")
     if result.report.failed:
         raise typer.Exit(1)

@@ -137,9 +137,14 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
                      reference: str | Path | Sequence[str | Path] | None = None,
                      executor: str = "local",
                      workers: int | None = None, progress: bool = True,
-                     tasks: Sequence[str] | None = None) -> EvaluateResult:
+                     tasks: Sequence[str] | None = None,
+                     predictors: Sequence[str] | None = None) -> EvaluateResult:
     """Compute ``encoder``'s stages of ``suite`` and write the merged leaderboard; with
-    ``tasks``, on those of the suite's tasks only (and against their reference records)."""
+    ``tasks``, on those of the suite's tasks only (and against their reference records).
+
+    With ``metrics_only`` the return is predicted from the metrics; ``predictors`` restricts
+    the metrics the prediction may use (default: every metric of the suite, the calibration
+    picking among them), its held-out coverage measured under the same restriction."""
     start = time.time()
     if workers is not None and workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
@@ -148,6 +153,13 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     elif encoder not in encoders:
         raise ConfigError(encoders._unknown_message(encoder))
     base = load_suite(suite)
+    unknown = sorted(set(predictors or ()) - set(base.metrics))
+    if unknown:
+        raise ConfigError(f"--predictor {', '.join(unknown)} is not a metric of suite "
+                          f"{base.name!r}; choose among {', '.join(base.metrics)}")
+    if predictors and not metrics_only:
+        raise ConfigError("--predictor applies to --metrics-only (a prediction of the return); "
+                          "add --metrics-only or drop --predictor")
     on_tasks = suite_on_tasks(base, tasks)
     out_dir = check_out_dir(out if out is not None
                             else Path("leaderboards") / f"{base.name}-{_folder_name(encoder)}")
@@ -192,6 +204,7 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
     res.highlight = [encoder]
     res.warnings = [*dropped, *warnings, *res.warnings]  # and those build_results found
     res.provenance["evaluated"] = {"encoder": encoder, "metrics_only": metrics_only,
+                                   "predictors": list(predictors or ()),
                                    "reference_records": ", ".join(map(str, ref_dirs)),
                                    "n_reference_records": len({r["identity"]
                                                                for r in reference_records})}
@@ -199,7 +212,8 @@ def evaluate_encoder(encoder: str, suite: str | Path = "smoke", *, metrics_only:
         from repbench.analysis.robustness import validated_method
         from repbench.report.families import encoder_families
 
-        res.predictions = predict_from_rows(res.metric_rows, res.rl_rows, encoder,
+        rows = [r for r in res.metric_rows if not predictors or r["metric"] in predictors]
+        res.predictions = predict_from_rows(rows, res.rl_rows, encoder,
                                             families=encoder_families(res),
                                             choose=validated_method)
         res.provenance["evaluated"]["predictions"] = res.predictions

@@ -86,6 +86,17 @@ def test_evaluate_metrics_only_against_reference_records(tmp_path: Path, half_st
                              out=tmp_path / "eval2", reference=ref, workers=1, progress=False,
                              tasks=["ToyReach-v0"])
     assert again.report.done == {} and len(again.report.cached) == len(res.report.done)
+    # --predictor: the return predicted from that metric only (the stages are all reused)
+    only = evaluate_encoder(half_state, suite, metrics_only=True, store=tmp_path / "fresh",
+                            out=tmp_path / "eval4", reference=ref, workers=1, progress=False,
+                            predictors=["regression"])
+    assert [p["predictor"] for p in only.predictions] == ["regression"]
+    with pytest.raises(ConfigError, match=r"--predictor task_cmi is not a metric of suite"):
+        evaluate_encoder(half_state, suite, metrics_only=True, store=tmp_path / "fresh",
+                         out=tmp_path / "eval5", reference=ref, predictors=["task_cmi"])
+    with pytest.raises(ConfigError, match=r"--predictor applies to --metrics-only"):
+        evaluate_encoder(half_state, suite, store=tmp_path / "fresh", out=tmp_path / "eval6",
+                         reference=ref, predictors=["ksg"])
     with pytest.raises(ConfigError, match=r"--task PegInHole-v0 is not a task of suite"):
         evaluate_encoder(half_state, suite, metrics_only=True, store=tmp_path / "fresh",
                          out=tmp_path / "eval3", reference=ref, tasks=["PegInHole-v0"])
