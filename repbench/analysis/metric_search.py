@@ -11,6 +11,7 @@ missing value for an encoder is not a candidate.
 from __future__ import annotations
 
 import itertools
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -112,12 +113,14 @@ def compare_on(values: pd.DataFrame, per_seed: Mapping[str, Sequence[float]], se
     y = np.array([s.mean() for s in seeds])
     rng = np.random.default_rng(seed)
     boot = np.empty((n_bootstrap, 3))
-    for k in range(n_bootstrap):
-        idx = rng.integers(0, len(names), len(names))
-        yb = np.array([rng.choice(seeds[i], len(seeds[i])).mean() for i in idx])
-        ra = stats.spearmanr(a[idx], yb).statistic
-        rb = stats.spearmanr(b[idx], yb).statistic
-        boot[k] = (ra, rb, ra - rb)
+    with warnings.catch_warnings():  # a resample of few encoders can be constant: NaN, dropped
+        warnings.simplefilter("ignore", stats.ConstantInputWarning)
+        for k in range(n_bootstrap):
+            idx = rng.integers(0, len(names), len(names))
+            yb = np.array([rng.choice(seeds[i], len(seeds[i])).mean() for i in idx])
+            ra = stats.spearmanr(a[idx], yb).statistic
+            rb = stats.spearmanr(b[idx], yb).statistic
+            boot[k] = (ra, rb, ra - rb)
     alpha = (1 - confidence) / 2
     lo, hi = np.nanquantile(boot, [alpha, 1 - alpha], axis=0)
     point = (float(stats.spearmanr(a, y).statistic), float(stats.spearmanr(b, y).statistic))

@@ -63,20 +63,20 @@ AGENT, BASELINE, N_SEEDS = "sac", "task_cmi", 3
 SELECTION, TEST = "selection.json", "test.json"
 
 
-def gaps(suite: str, latents: str | None = None, reference: Sequence[str] | None = None
-         ) -> list[str]:
-    """What keeps ``suite``'s reference from being complete on both tasks (empty: complete)."""
+def gaps(suite: str, latents: str | None = None, reference: Sequence[str] | None = None,
+         tasks: Sequence[str] = (SELECT_TASK, TEST_TASK), n_seeds: int = N_SEEDS) -> list[str]:
+    """What keeps ``suite``'s reference from being complete on ``tasks`` (empty: complete)."""
     s = load_suite(suite)
     records = load_records(*reference_dirs(s.name, reference))
     res = build_results(records, suite=s)
-    learned = {t: e for t, e in learned_encoders(res).items() if t in (SELECT_TASK, TEST_TASK)}
-    for task in (SELECT_TASK, TEST_TASK):
+    learned = {t: e for t, e in learned_encoders(res).items() if t in tasks}
+    for task in tasks:
         if task not in learned:
             learned[task] = []
     missing = [f"{t}: no learned encoder has metric records" for t, e in learned.items() if not e]
     sets = read_manifest(latents_dir(s.name, latents)).get("sets", [])
     rl = [r for r in records if r.get("kind") == "rl"]
-    return missing + reference_gaps(sets, rl, learned, agent=AGENT, n_seeds=N_SEEDS)
+    return missing + reference_gaps(sets, rl, learned, agent=AGENT, n_seeds=n_seeds)
 
 
 def _tables(score: Any, task: str) -> tuple[pd.DataFrame, dict[str, list[float]], list[str]]:
@@ -99,7 +99,8 @@ def _tables(score: Any, task: str) -> tuple[pd.DataFrame, dict[str, list[float]]
 
 
 def _refuse_partial(args: argparse.Namespace) -> None:
-    found = gaps(args.suite, args.latents, args.reference)
+    found = gaps(args.suite, args.latents, args.reference, (args.select_task, args.test_task),
+                 args.n_seeds)
     if found:
         sys.exit(f"the reference is not complete ({len(found)} gaps, first: {found[0]}); the "
                  "pre-registration runs the search on the complete reference only — "
@@ -118,21 +119,21 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     """Step 2: the selection on PegInHole-v0 (module docstring)."""
     _refuse_partial(args)
     out = Path(args.out)
-    score = score_metrics(CANDIDATES, args.suite, latents=args.latents,
-                          reference=args.reference, tasks=[SELECT_TASK], out=out / "scores",
-                          echo=print)
-    values, per_seed, _ = _tables(score, SELECT_TASK)
+    score = score_metrics(args.candidates, args.suite, latents=args.latents,
+                          reference=args.reference, tasks=[args.select_task],
+                          out=out / "scores", echo=print, progress=args.progress)
+    values, per_seed, _ = _tables(score, args.select_task)
     returns = {e: float(np.mean(v)) for e, v in per_seed.items()}
     sel = nested_selection(values, returns)
-    rows = _ranking_rows(score.ranking, SELECT_TASK)
+    rows = _ranking_rows(score.ranking, args.select_task)
     observable = [r for r in rows if r["group"] == "observable"]
     best_obs = max(observable, key=lambda r: r["spearman_learned"])["metric"] if observable \
         else None
     y = np.array([returns[e] for e in values.index])
     model = list(sel.model)
     result = {
-        "task": SELECT_TASK, "agent": AGENT, "n_learned": len(values),
-        "candidates": list(CANDIDATES), "metrics": list(values.columns),
+        "task": args.select_task, "agent": AGENT, "n_learned": len(values),
+        "candidates": list(args.candidates), "metrics": list(values.columns),
         "single": sel.single, "single_rho": sel.single_rho,
         "model": model, "nested_rho": sel.nested_rho,
         "nested_predictions": sel.nested_predictions,
@@ -143,7 +144,7 @@ def select(args: argparse.Namespace) -> dict[str, Any]:
     }
     (out / SELECTION).write_text(json.dumps(result, indent=1) + "\n")
     (out / "selection.md").write_text(_selection_md(result))
-    print(f"selected on {SELECT_TASK}: single {sel.single} (ρ {sel.single_rho:.2f}); model "
+    print(f"selected on {args.select_task}: single {sel.single} (ρ {sel.single_rho:.2f}); model "
           f"{' + '.join(model)} (nested ρ {sel.nested_rho:.2f}); best observable {best_obs}; "
           f"written to {out}")
     return result
@@ -170,10 +171,10 @@ def held_out_test(args: argparse.Namespace) -> dict[str, Any]:
                  "scoring it on Door-v0")
     _refuse_partial(args)
     sel = json.loads(path.read_text())
-    score = score_metrics(CANDIDATES, args.suite, latents=args.latents,
-                          reference=args.reference, tasks=[TEST_TASK], out=out / "scores_test",
-                          echo=print)
-    values, per_seed, _ = _tables(score, TEST_TASK)
+    score = score_metrics(sel["candidates"], args.suite, latents=args.latents,
+                          reference=args.reference, tasks=[args.test_task],
+                          out=out / "scores_test", echo=print, progress=args.progress)
+    values, per_seed, _ = _tables(score, args.test_task)
     train = sel["model_train"]
     values["__model__"] = transfer_model(np.asarray(train["values"], float),
                                          np.asarray(train["returns"], float),
@@ -184,59 +185,69 @@ def held_out_test(args: argparse.Namespace) -> dict[str, Any]:
                           ("best_observable", sel["best_observable"])):
         if column is None:
             continue
-        cmp = compare_on(values, per_seed, column, BASELINE)
+        cmp = compare_on(values, per_seed, column, args.baseline)
         lo, hi = cmp["rho_selected_ci"]
         dlo = cmp["difference_ci"][0]
-        verdict = ("beats task_cmi" if dlo > 0 else "holds" if lo > 0
+        verdict = (f"beats {args.baseline}" if dlo > 0 else "holds" if lo > 0
                    else "does not hold" if hi < 0 else "inconclusive")
         cols = sel["model"] if column == "__model__" else [column]
         checks[label] = {**cmp, "selected": " + ".join(cols), "verdict": verdict,
                          "loo_rmse": loo_rmse(values[cols].to_numpy(float), y),
-                         "loo_rmse_task_cmi": loo_rmse(values[[BASELINE]].to_numpy(float), y)}
+                         "loo_rmse_task_cmi": loo_rmse(values[[args.baseline]].to_numpy(float),
+                                                       y)}
     switch = min((c for k, c in checks.items() if k != "best_observable"),
                  key=lambda c: c["loo_rmse"], default=None)
-    result = {"task": TEST_TASK, "agent": AGENT, "n_learned": len(values), "checks": checks,
+    result = {"task": args.test_task, "agent": AGENT, "n_learned": len(values),
+              "baseline": args.baseline, "checks": checks,
               "evaluate_switches_to": (switch["selected"] if switch is not None
                                        and switch["loo_rmse"] < switch["loo_rmse_task_cmi"]
                                        else None),
-              "ranking": _ranking_rows(score.ranking, TEST_TASK)}
+              "ranking": _ranking_rows(score.ranking, args.test_task)}
     (out / TEST).write_text(json.dumps(result, indent=1, default=float) + "\n")
     (out / "test.md").write_text(_test_md(result))
     for label, c in checks.items():
-        print(f"{TEST_TASK} {label} {c['selected']}: ρ {c['rho_selected']:.2f} "
+        print(f"{args.test_task} {label} {c['selected']}: ρ {c['rho_selected']:.2f} "
               f"[{c['rho_selected_ci'][0]:.2f}, {c['rho_selected_ci'][1]:.2f}] vs task_cmi "
               f"{c['rho_baseline']:.2f}; {c['verdict']}")
     return result
+
+
+def _f(x: Any, spec: str) -> str:
+    """``x`` formatted, or – where it is missing (a null of the JSON, NaN)."""
+    return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else format(x, spec)
 
 
 def _fmt_rows(rows: list[dict[str, Any]]) -> list[str]:
     lines = ["| metric | group | ρ within learned [95 %] | Holm p | share of ceiling |",
              "|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| `{r['metric']}` | {r['group']} | {r['spearman_learned']:.2f} "
-                     f"[{r['spearman_learned_ci_low']:.2f}, {r['spearman_learned_ci_high']:.2f}]"
-                     f" | {r['spearman_learned_p_holm']:.3g} | {r['of_ceiling']:.0%} |")
+        lines.append(f"| `{r['metric']}` | {r['group']} | {_f(r['spearman_learned'], '.2f')} "
+                     f"[{_f(r['spearman_learned_ci_low'], '.2f')}, "
+                     f"{_f(r['spearman_learned_ci_high'], '.2f')}] | "
+                     f"{_f(r['spearman_learned_p_holm'], '.3g')} | "
+                     f"{_f(r['of_ceiling'], '.0%')} |")
     return lines
 
 
 def _selection_md(r: dict[str, Any]) -> str:
-    ceiling = r["ranking"][0]["noise_ceiling"] if r["ranking"] else float("nan")
+    ceiling = r["ranking"][0]["noise_ceiling"] if r["ranking"] else None
     return "\n".join([
         f"# Metric search: the selection on {r['task']} (step 2 of the pre-registration)", "",
-        f"{r['n_learned']} learned encoders, SAC, noise ceiling {ceiling:.2f}.", "",
+        f"{r['n_learned']} learned encoders, SAC, noise ceiling {_f(ceiling, '.2f')}.", "",
         f"- **Best single metric**: `{r['single']}`, ρ {r['single_rho']:.2f}.",
         f"- **Selected model** (nested leave-one-encoder-out): `{' + '.join(r['model'])}`; "
         f"its honest nested ρ {r['nested_rho']:.2f}.",
         f"- **Best observable metric**: `{r['best_observable']}`.", "",
-        "All 23 metrics (Holm over all of them):", "", *_fmt_rows(r["ranking"]), ""])
+        f"All {len(r['ranking'])} metrics (Holm over all of them):", "",
+        *_fmt_rows(r["ranking"]), ""])
 
 
 def _test_md(r: dict[str, Any]) -> str:
     lines = [f"# Metric search: the selection scored on {r['task']} (step 3)", "",
              f"{r['n_learned']} learned encoders, SAC; the same bootstrap resamples for the "
-             "selection and `task_cmi`.", "",
-             "| check | metric(s) | ρ [95 %] | task_cmi ρ | difference [95 %] | verdict | "
-             "LOO RMSE (task_cmi's) |", "|---|---|---|---|---|---|---|"]
+             f"selection and `{r['baseline']}`.", "",
+             f"| check | metric(s) | ρ [95 %] | {r['baseline']} ρ | difference [95 %] | verdict | "
+             f"LOO RMSE ({r['baseline']}'s) |", "|---|---|---|---|---|---|---|"]
     for label, c in r["checks"].items():
         lines.append(
             f"| {label} | `{c['selected']}` | {c['rho_selected']:.2f} "
@@ -246,9 +257,10 @@ def _test_md(r: dict[str, Any]) -> str:
             f"({c['loo_rmse_task_cmi']:.0f}) |")
     switch = r["evaluate_switches_to"]
     lines += ["", "`repbench evaluate --metrics-only`: "
-              + (f"switches to `{switch}`." if switch else "keeps `task_cmi` (no selection has "
-                 "a lower leave-one-encoder-out RMSE on the held-out task)."), "",
-              "All 23 metrics:", "", *_fmt_rows(r["ranking"]), ""]
+              + (f"switches to `{switch}` (`--predictor`)." if switch else
+                 f"keeps `{r['baseline']}` (no selection has a lower leave-one-encoder-out RMSE "
+                 "on the held-out task)."), "",
+              f"All {len(r['ranking'])} metrics:", "", *_fmt_rows(r["ranking"]), ""]
     return "\n".join(lines)
 
 
@@ -261,12 +273,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.add_argument("--latents", default=None)
         p.add_argument("--reference", action="append", default=None)
         p.add_argument("--out", default=str(Path(__file__).parent / "results"))
+        # the pre-registration's; other values are for testing the steps on a toy reference
+        p.add_argument("--select-task", default=SELECT_TASK)
+        p.add_argument("--test-task", default=TEST_TASK)
+        p.add_argument("--candidates", nargs="+", default=list(CANDIDATES))
+        p.add_argument("--n-seeds", type=int, default=N_SEEDS)
+        p.add_argument("--baseline", default=BASELINE)
+        p.add_argument("--no-progress", dest="progress", action="store_false")
         if step == "test":
             p.add_argument("--uncommitted-ok", action="store_true",
                            help="score a selection that is not committed (tests only)")
     args = ap.parse_args(argv)
     if args.step == "check":
-        found = gaps(args.suite, args.latents, args.reference)
+        found = gaps(args.suite, args.latents, args.reference,
+                     (args.select_task, args.test_task), args.n_seeds)
         for g in found:
             print(g)
         print(f"{len(found)} gaps" if found else "the reference is complete")

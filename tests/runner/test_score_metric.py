@@ -194,3 +194,45 @@ def test_a_damaged_latents_file_is_refused_by_name(reference: Path, tmp_path: Pa
         score_metric("ksg", str(reference / "toyscore.toml"),
                      reference=reference / "ref" / "records", latents=copy, workers=1,
                      progress=False, n_bootstrap=50)
+
+
+def _search():  # type: ignore[no-untyped-def]
+    """studies/metric_search/search.py, the pre-registered search's steps, as a module."""
+    import importlib.util
+
+    path = Path(__file__).parents[2] / "studies" / "metric_search" / "search.py"
+    spec = importlib.util.spec_from_file_location("metric_search_steps", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_metric_searchs_steps_run_in_order_on_a_toy_reference(
+        reference: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    search = _search()
+    toy = ["--suite", str(reference / "toyscore.toml"), "--latents", str(reference / "latents"),
+           "--reference", str(reference / "ref" / "records"), "--select-task", "ToyReach-v0",
+           "--test-task", "ToyReach-v0", "--out", str(tmp_path / "search")]
+    assert search.main(["check", *toy]) == 1  # 2 SAC seeds where the pre-registration wants 3
+    assert "part1: 2 of 3 sac seeds of the shipped weights" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="the reference is not complete"):
+        search.main(["select", *toy])
+    toy += ["--n-seeds", "2", "--candidates", "rankme", "nesum", "--no-progress",
+            "--baseline", "ksg"]  # the toy suite has no task_cmi
+    assert search.main(["check", *toy]) == 0
+    assert search.main(["select", *toy]) == 0
+    sel = json.loads((tmp_path / "search" / "selection.json").read_text())
+    assert sel["n_learned"] == 4 and sel["candidates"] == ["rankme", "nesum"]
+    assert {r["metric"] for r in sel["ranking"]} == {"ksg", "regression", "rankme", "nesum"}
+    assert sel["single"] in sel["metrics"] and set(sel["model"]) <= set(sel["metrics"])
+    assert sel["best_observable"] in ("rankme", "nesum")
+    with pytest.raises(SystemExit, match="is not committed"):  # tmp_path is no git checkout
+        search.main(["test", *toy])
+    assert search.main(["test", *toy, "--uncommitted-ok"]) == 0
+    test = json.loads((tmp_path / "search" / "test.json").read_text())
+    assert set(test["checks"]) == {"single", "model", "best_observable"}
+    for check in test["checks"].values():
+        assert check["verdict"] in ("beats ksg", "holds", "does not hold", "inconclusive")
+        assert check["baseline"] == "ksg" and check["n"] == 4
+    assert test["evaluate_switches_to"] in (None, sel["single"], " + ".join(sel["model"]))
