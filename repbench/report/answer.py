@@ -215,8 +215,8 @@ def _said(r: dict[str, Any], task: str, agent: str, agents: int) -> str:
     holm = r.get("spearman_learned_p_holm")
     predicts = holm is not None and math.isfinite(float(holm)) and float(holm) < 0.05
     return (f"on {where} <code>{html.escape(str(r['metric']))}</code>, ρ "
-            f"{float(r['spearman_learned']):.2f} [{float(r['spearman_learned_ci_low']):.2f}, "
-            f"{float(r['spearman_learned_ci_high']):.2f}]{share_said}"
+            f"{_fmt2(r['spearman_learned'])} [{_fmt2(r['spearman_learned_ci_low'])}, "
+            f"{_fmt2(r['spearman_learned_ci_high'])}]{share_said}"
             + ("" if predicts else " — not significant: no metric of this kind is shown to "
                "predict there"))
 
