@@ -6,13 +6,16 @@ Three steps, in this order, each refusing to run out of it:
     Is the reference complete? Every learned encoder of PegInHole-v0 and Door-v0 has its latents
     shipped and 3 SAC seeds of the shipped weights (the pre-registration runs on nothing less).
 ``select``
-    PegInHole-v0 only: the 12 candidates scored on the shipped latents beside the 11 metrics on
-    the board (one ranking, Holm over all 23), then the selection rule — the best single metric,
+    Refuses unless PegInHole-v0's reference is complete (the 2026-12-08 amendment: the selection
+    reads PegInHole-v0 only, so it need not wait for Door-v0's). The 12 candidates scored on
+    the shipped latents beside the 11 metrics on the board (one ranking, Holm over all 23),
+    then the selection rule — the best single metric,
     the best model of at most two by nested leave-one-encoder-out CV, the best observable
     metric. Writes ``selection.json`` and ``selection.md`` to ``--out``; commit them before
     ``test``.
 ``test``
-    Door-v0, scored once: refuses unless ``selection.json`` is committed and unchanged since.
+    Door-v0, scored once: refuses unless ``selection.json`` is committed and unchanged since,
+    and unless both tasks' reference is complete.
     The selected single metric, the selected combination (fitted on PegInHole-v0's ranks) and
     the best observable metric against ``task_cmi`` on the same bootstrap resamples; the
     leave-one-encoder-out RMSE that decides ``evaluate --metrics-only``. Writes ``test.json``
@@ -98,13 +101,12 @@ def _tables(score: Any, task: str) -> tuple[pd.DataFrame, dict[str, list[float]]
     return values.loc[sorted(values.index)], per_seed, learned
 
 
-def _refuse_partial(args: argparse.Namespace) -> None:
-    found = gaps(args.suite, args.latents, args.reference, (args.select_task, args.test_task),
-                 args.n_seeds)
+def _refuse_partial(args: argparse.Namespace, tasks: Sequence[str]) -> None:
+    found = gaps(args.suite, args.latents, args.reference, tasks, args.n_seeds)
     if found:
-        sys.exit(f"the reference is not complete ({len(found)} gaps, first: {found[0]}); the "
-                 "pre-registration runs the search on the complete reference only — "
-                 "`search.py check` lists them")
+        sys.exit(f"the reference is not complete on {', '.join(tasks)} ({len(found)} gaps, "
+                 f"first: {found[0]}); the pre-registration runs each step on a complete "
+                 "reference only — `search.py check` lists them")
 
 
 def _ranking_rows(ranking: pd.DataFrame, task: str) -> list[dict[str, Any]]:
@@ -117,7 +119,7 @@ def _ranking_rows(ranking: pd.DataFrame, task: str) -> list[dict[str, Any]]:
 
 def select(args: argparse.Namespace) -> dict[str, Any]:
     """Step 2: the selection on PegInHole-v0 (module docstring)."""
-    _refuse_partial(args)
+    _refuse_partial(args, (args.select_task,))
     out = Path(args.out)
     score = score_metrics(args.candidates, args.suite, latents=args.latents,
                           reference=args.reference, tasks=[args.select_task],
@@ -169,7 +171,7 @@ def held_out_test(args: argparse.Namespace) -> dict[str, Any]:
     if not args.uncommitted_ok and not _committed_unchanged(path):
         sys.exit(f"{path} is not committed (or changed since); commit the selection before "
                  "scoring it on Door-v0")
-    _refuse_partial(args)
+    _refuse_partial(args, (args.select_task, args.test_task))
     sel = json.loads(path.read_text())
     score = score_metrics(sel["candidates"], args.suite, latents=args.latents,
                           reference=args.reference, tasks=[args.test_task],
