@@ -226,7 +226,8 @@ def build_results(records: Iterable[Mapping[str, Any]], *, suite: Any = None,
                                     "stage_cpu_s": _stage_cpu_s(r)})
         elif kind == "rl":
             res.rl_rows.append({"task": task, "encoder": enc, "agent": r["agent"]["name"],
-                                "seed": r.get("seed"), **values})
+                                "seed": r.get("seed"),
+                                "encoder_weights": r.get("encoder_weights"), **values})
         elif kind == "diagnostics":
             res.diagnostics[task] = values
         elif kind in _LABELS:

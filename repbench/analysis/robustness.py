@@ -65,7 +65,8 @@ from repbench.analysis.calibration import (
 
 __all__ = ["AGENT_THRESHOLD", "BUDGET_THRESHOLD", "MAX_HALF_WIDTH", "TASK_THRESHOLD", "Check",
            "best_metric_agreement", "calibration_checks", "choose_method", "coverage_verdict",
-           "heldout_predictions", "ranking_agreement", "returns_by_encoder", "robustness_table"]
+           "heldout_predictions", "ranking_agreement", "returns_by_encoder", "robustness_table",
+           "same_trainings"]
 
 ALPHA = 0.05
 #: An interval wider than ± this (return units) is not an answer, whatever it covers.
@@ -305,6 +306,40 @@ def best_metric_agreement(first: pd.DataFrame, second: pd.DataFrame, *, check: s
                  float(r["spearman_learned_ci_high"]), verdict, detail)
 
 
+def same_trainings(base_rows: Sequence[Mapping[str, Any]],
+                   other_rows: Sequence[Mapping[str, Any]], task: str,
+                   agent: str = "sac") -> str | None:
+    """Whether the RL runs ``other_rows`` make of ``task``'s encoders (a separate run: another
+    agent, a longer budget) used the very weights the board's ``agent`` runs in ``base_rows``
+    used (their ``encoder_weights``), as one clause for a check's detail; None when every
+    encoder's did, or when no record of either names its weights (boards made before records
+    did). A retrained encoder is a different encoder, so an agreement row over runs of
+    other trainings measures retraining too, and should say so."""
+    base: dict[str, set[Any]] = {}
+    other: dict[str, set[Any]] = {}
+    for rows, into in ((base_rows, base), (other_rows, other)):
+        for r in rows:
+            if r["task"] == task and (into is other or r["agent"] == agent):
+                into.setdefault(str(r["encoder"]), set()).add(r.get("encoder_weights"))
+    same = differ = unknown = 0
+    for enc, weights in other.items():
+        mine = base.get(enc, set())
+        if None in weights or None in mine or not mine:
+            unknown += 1
+        elif weights == mine and len(mine) == 1:
+            same += 1
+        else:
+            differ += 1
+    recorded = any(w is not None for ws in (*base.values(), *other.values()) for w in ws)
+    if not other or same == len(other) or not recorded:  # all the same, or nothing to tell
+        return None
+    parts = [f"{n} {what}" for n, what in ((differ, "of another training"),
+                                           (unknown, "of a training not recorded"))
+             if n]
+    return (f"its runs are of the board's trained encoders for {same} of {len(other)} encoders "
+            f"({', '.join(parts)}: retraining moves returns too)")
+
+
 def task_checks(rl_rows: Sequence[Mapping[str, Any]], ranking: pd.DataFrame | None
                 ) -> list[Check]:
     """The across-tasks rows, per agent: the encoder ranking (Kendall τ) of every pair of tasks,
@@ -441,12 +476,15 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
             if budgets["sac"] != budgets["ddpg"]:  # each agent where it learns: say so
                 agreement = replace(agreement,
                                     detail=f"{budgets_said(budgets)}; {agreement.detail}")
-            checks.append(agreement)
+            trainings = same_trainings(rl_rows, [r for r in both_rows if r["agent"] == "ddpg"],
+                                       task)
+            pair = [agreement]
             if ranking is not None:
-                checks.append(best_metric_agreement(
+                pair.append(best_metric_agreement(
                     _board(ranking, task, "sac"), _board(ranking, task, "ddpg"),
                     check=f"SAC's best metric under DDPG {task}", first_label="SAC",
                     second_label="DDPG"))
+            checks += [_say(c, trainings) for c in pair]
     for task, agent in sorted({(r["task"], r["agent"]) for r in longer}):
         steps = sorted({int(r["train_steps"]) for r in longer
                         if r["task"] == task and r["agent"] == agent})
@@ -455,18 +493,26 @@ def check_results(metric_rows: Sequence[Mapping[str, Any]], rl_rows: Sequence[Ma
         if not base:
             continue
         short, long = steps_label(base[0]), steps_label(steps[-1])
-        checks.append(ranking_agreement(
+        trainings = same_trainings(rl_rows, [r for r in longer if r["agent"] == agent], task,
+                                   agent)
+        pair = [ranking_agreement(
             returns_by_encoder(rl_rows, task, agent, base[0]),
             returns_by_encoder(longer, task, agent, steps[-1]),
             check=budget_check_name(agent, base[0], steps[-1], task), kind="kendall",
-            threshold=BUDGET_THRESHOLD))
+            threshold=BUDGET_THRESHOLD)]
         if ranking is not None and longer_ranking is not None:
-            checks.append(best_metric_agreement(
+            pair.append(best_metric_agreement(
                 _board(ranking, task, agent), _board(longer_ranking, task, agent),
                 check=f"{short} best metric at {long} {task} {agent}", first_label=short,
                 second_label=long))
+        checks += [_say(c, trainings) for c in pair]
     checks += task_checks(rl_rows, ranking)
     return checks, (pd.concat(frames, ignore_index=True) if frames else pd.DataFrame())
+
+
+def _say(check: Check, clause: str | None) -> Check:
+    """``check`` with ``clause`` appended to its detail (unchanged when None)."""
+    return check if clause is None else replace(check, detail=f"{check.detail}; {clause}")
 
 
 def validated_method(metric_rows: Sequence[Mapping[str, Any]],

@@ -16,6 +16,7 @@ from repbench.analysis.robustness import (
     coverage_verdict,
     heldout_predictions,
     ranking_agreement,
+    same_trainings,
     task_checks,
 )
 
@@ -171,6 +172,33 @@ def test_check_results_adds_agent_and_budget_rows() -> None:
     assert by["SAC 10k vs 30k ranking T"].verdict == "holds"
     assert by["out-of-sample coverage (family_cv_1metric_80) T sac"].verdict == "holds"
     assert {"task", "agent", "predicted", "half_width", "covered"} <= set(pred.columns)
+
+
+def test_agreement_rows_say_when_the_other_runs_are_of_other_trainings() -> None:
+    rng = np.random.default_rng(3)
+    n = 12
+    m = np.linspace(0, 1, n)
+    metric_rows = [{"task": "T", "encoder": f"e{i}", "metric": "m", "value": float(m[i])}
+                   for i in range(n)]
+    sac = [{"task": "T", "encoder": f"e{i}", "agent": "sac", "seed": s, "train_steps": 10_000,
+            "encoder_weights": f"w{i}", "eval_return": float(500 * m[i] + rng.normal(0, 10))}
+           for i in range(n) for s in range(3)]
+    # DDPG ran the same trainings of e0..e7, another training of e8..e9; e10, e11 predate the
+    # field. The 30k runs all name the board's weights.
+    ddpg = [dict(r, agent="ddpg", encoder_weights=(
+        r["encoder_weights"] if int(r["encoder"][1:]) < 8 else
+        "other" if int(r["encoder"][1:]) < 10 else None)) for r in sac]
+    longer = [dict(r, train_steps=30_000) for r in sac]
+    checks, _ = check_results(metric_rows, sac + ddpg, {f"e{i}": f"f{i % 4}" for i in range(n)},
+                              longer=longer)
+    by = {c.check: c for c in checks}
+    clause = ("its runs are of the board's trained encoders for 8 of 12 encoders (2 of another "
+              "training, 2 of a training not recorded")
+    assert clause in by["SAC vs DDPG ranking T"].detail
+    assert "trained encoders" not in by["SAC 10k vs 30k ranking T"].detail
+    assert same_trainings(sac, longer, "T") is None
+    assert same_trainings([dict(r, encoder_weights=None) for r in sac],
+                          [dict(r, encoder_weights=None) for r in ddpg], "T") is None
 
 
 def test_task_checks_rank_every_pair_and_carry_the_first_tasks_best_metric() -> None:
