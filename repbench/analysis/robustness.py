@@ -66,7 +66,7 @@ from repbench.analysis.calibration import (
 __all__ = ["AGENT_THRESHOLD", "BUDGET_THRESHOLD", "MAX_HALF_WIDTH", "TASK_THRESHOLD", "Check",
            "best_metric_agreement", "calibration_checks", "choose_method", "coverage_verdict",
            "heldout_predictions", "ranking_agreement", "returns_by_encoder", "robustness_table",
-           "same_trainings"]
+           "same_trainings", "trainings_of_detail"]
 
 ALPHA = 0.05
 #: An interval wider than ± this (return units) is not an answer, whatever it covers.
@@ -336,8 +336,18 @@ def same_trainings(base_rows: Sequence[Mapping[str, Any]],
     parts = [f"{n} {what}" for n, what in ((differ, "of another training"),
                                            (unknown, "of a training not recorded"))
              if n]
-    return (f"its runs are of the board's trained encoders for {same} of {len(other)} encoders "
+    return (f"{_TRAININGS_SAID}{same} of {len(other)} encoders "
             f"({', '.join(parts)}: retraining moves returns too)")
+
+
+_TRAININGS_SAID = "its runs are of the board's trained encoders for "
+
+
+def trainings_of_detail(detail: Any) -> str:
+    """The share :func:`same_trainings` put in a check's detail ("0 of 10 encoders"), or ``""``
+    when the other run's encoders are the board's (or nothing was recorded)."""
+    _, sep, tail = str(detail).partition(_TRAININGS_SAID)
+    return tail.split(" (", 1)[0] if sep else ""
 
 
 def task_checks(rl_rows: Sequence[Mapping[str, Any]], ranking: pd.DataFrame | None

@@ -15,7 +15,7 @@ from typing import Any
 
 import pandas as pd
 
-from repbench.analysis.robustness import budgets_of_detail
+from repbench.analysis.robustness import budgets_of_detail, trainings_of_detail
 from repbench.report.html_parts import VERDICT_COLORS as _VERDICT_COLORS
 from repbench.report.html_parts import figure as _figure
 from repbench.report.html_parts import fmt as _fmt
@@ -122,6 +122,14 @@ def _budgets(detail: Any) -> str:
     return f"<br><span class='ci'>{html.escape(said)}</span>" if said else ""
 
 
+def _trainings(detail: Any) -> str:
+    """Under a check's name, where the other run's RL used other trainings of the encoders than
+    the board's (:func:`repbench.analysis.robustness.same_trainings`)."""
+    said = trainings_of_detail(detail)
+    return (f"<br><span class='ci'>its RL used the board's trained encoders for {html.escape(said)}"
+            "</span>") if said else ""
+
+
 def _checks_table(checks: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> list[str]:
     """The robustness checks other than coverage (transfers, agreements), one row each, and
     one line for the coverage checks."""
@@ -139,7 +147,8 @@ def _checks_table(checks: pd.DataFrame, fmt: Any, colors: dict[str, str]) -> lis
         return out
     body = "".join(
         f"<tr title='{html.escape(str(r['detail']))}'>"
-        f"<td class='txt'>{html.escape(str(r['check']))}{_budgets(r['detail'])}</td>"
+        f"<td class='txt'>{html.escape(str(r['check']))}{_budgets(r['detail'])}"
+        f"{_trainings(r['detail'])}</td>"
         f"<td class='txt' style='white-space:normal;min-width:180px'>"
         f"{html.escape(str(r['statistic']))}</td>"
         f"<td data-v='{r['value']}'>{_estimate(r, fmt)}</td>"

@@ -255,6 +255,31 @@ def test_the_answers_agreement_row_names_both_budgets_when_they_differ() -> None
     assert "steps</span>" not in row_u[:row_u.index("</td>")]
 
 
+def test_the_answers_agreement_row_says_when_the_other_runs_used_other_trainings() -> None:
+    """The 10k-vs-30k runs of other (unrecorded) trainings of the encoders: the row says so
+    under the check's name; a row whose runs used the board's encoders gets no such line."""
+    from repbench.analysis.robustness import same_trainings
+    from repbench.report.answer import _checks_table
+    from repbench.report.html_parts import VERDICT_COLORS, fmt
+
+    base = [{"task": "T-v0", "encoder": e, "agent": "sac", "encoder_weights": e}
+            for e in ("a", "b", "c")]
+    clause = same_trainings(base, [dict(r, encoder_weights=None) for r in base[:2]], "T-v0")
+    assert clause is not None
+    checks = pd.DataFrame([
+        {"check": "SAC 10k vs 30k ranking T-v0", "statistic": "Kendall τ", "value": 0.5,
+         "ci_low": -0.1, "ci_high": 0.9, "verdict": "inconclusive",
+         "detail": f"10 encoders; {clause}"},
+        {"check": "SAC 10k vs 30k ranking U-v0", "statistic": "Kendall τ", "value": 0.5,
+         "ci_low": -0.1, "ci_high": 0.9, "verdict": "inconclusive", "detail": "10 encoders"}])
+    page = "".join(_checks_table(checks, fmt, VERDICT_COLORS))
+    row_t = page[page.index("ranking T-v0"):page.index("ranking U-v0")]
+    assert ("ranking T-v0<br><span class='ci'>its RL used the board's trained encoders for 0 of 2 "
+            "encoders</span>") in row_t
+    row_u = page[page.index("ranking U-v0"):]
+    assert "trained encoders" not in row_u[:row_u.index("</td>")]
+
+
 def test_a_rebuild_leaves_no_figure_the_page_does_not_show(tmp_path: Path) -> None:
     """A board rebuilt from records copies each encoder's training curves from its earlier
     figures; when the board gains a task the copy is renamed ``<stem>_<enc>_<task>.png``, and the

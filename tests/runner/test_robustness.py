@@ -18,6 +18,7 @@ from repbench.analysis.robustness import (
     ranking_agreement,
     same_trainings,
     task_checks,
+    trainings_of_detail,
 )
 
 
@@ -195,6 +196,8 @@ def test_agreement_rows_say_when_the_other_runs_are_of_other_trainings() -> None
     clause = ("its runs are of the board's trained encoders for 8 of 12 encoders (2 of another "
               "training, 2 of a training not recorded")
     assert clause in by["SAC vs DDPG ranking T"].detail
+    assert trainings_of_detail(by["SAC vs DDPG ranking T"].detail) == "8 of 12 encoders"
+    assert trainings_of_detail(by["SAC 10k vs 30k ranking T"].detail) == ""
     assert "trained encoders" not in by["SAC 10k vs 30k ranking T"].detail
     assert same_trainings(sac, longer, "T") is None
     assert same_trainings([dict(r, encoder_weights=None) for r in sac],
