@@ -138,6 +138,9 @@ def leaderboard(
         "--copy-records/--no-copy-records", help="Copy the --records into OUT/records (the "
         "default), or leave them where they are and name their folders in provenance.json: for "
         "a board built from another board's records, e.g. one task of quick.")] = True,
+    scores: Annotated[Optional[list[Path]], typer.Option(  # noqa: UP045
+        "--scores", help="Folder `repbench score-metric --out` wrote; repeat it for several: "
+        "ranks the metrics scored there with the board's own in metrics.csv.")] = None,
 ) -> None:
     """Rebuild the leaderboards (CSV + HTML) from stored results without recomputing."""
     from repbench.pipeline.runner import rebuild_leaderboards
@@ -147,7 +150,8 @@ def leaderboard(
             raise RepbenchError(f"records folder {folder} does not exist")
     out_dir = rebuild_leaderboards(suite, store=store, out=out, records=records or None,
                                    longer=longer, agent_run=agent_run,
-                                   predictions=predictions, copy_records=copy_records)
+                                   predictions=predictions, copy_records=copy_records,
+                                   scores=scores)
     typer.echo(f"leaderboards written to {out_dir}")
 
 
@@ -201,7 +205,8 @@ def score_metric(
         "--task", help="Only this task (repeat for several; default: every task with shipped "
         "latents).")] = None,
     out: Annotated[Optional[str], typer.Option(  # noqa: UP045
-        "--out", help="Folder for its row, every metric's rows and its figure (default: "
+        "--out", help="Folder for its row, every metric's rows, its figure and scored.json, "
+        "which `repbench leaderboard --scores` reads (default: "
         "leaderboards/<suite>-metric-<metric>).")] = None,
     reference: Annotated[Optional[list[Path]], typer.Option(  # noqa: UP045
         "--reference", help="Folder of reference records, repeat for several (default: the "

@@ -340,7 +340,8 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
                          longer: str | Path | None = None,
                          agent_run: str | Path | None = None,
                          predictions: str | Path | Sequence[str | Path] | None = None,
-                         copy_records: bool = True) -> Path:
+                         copy_records: bool = True,
+                         scores: str | Path | Sequence[str | Path] | None = None) -> Path:
     """Write the leaderboards of ``suite`` from what the store holds; computes nothing.
 
     With ``records`` (a folder of record files, e.g. ``leaderboards/smoke/records``, or
@@ -354,13 +355,20 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     (:func:`load_predictions`). ``copy_records=False`` (only with ``records``) leaves the records
     in their folders, which ``provenance.json`` names, instead of copying them into
     ``<out>/records``: a board built from another board's records (one task of quick, say) then
-    does not store them twice.
+    does not store them twice. With ``scores`` (a folder ``repbench score-metric --out`` wrote,
+    or several) the metrics scored there are ranked with the records' own (:func:`add_scores`).
     """
     s = load_suite(suite)
     if not copy_records and records is None:
         raise ConfigError("not copying the records needs --records: a board built from the store "
                           "has no record files elsewhere to point to; drop --no-copy-records")
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
+    score_folders = [scores] if isinstance(scores, (str, Path)) else list(scores or [])
+    if score_folders:  # a bad folder is refused before the records are read
+        from repbench.pipeline.score_metric import read_scores
+
+        for folder in score_folders:
+            read_scores(folder)
     if records is not None:
         folders = [records] if isinstance(records, str | Path) else list(records)
         where = f"records folder {', '.join(map(str, folders))}"
@@ -378,6 +386,8 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     if not (results.encoder_rows or results.metric_rows or results.rl_rows):
         raise RepbenchError(f"no results of suite {s.name!r} in {where}; run "
                             f"`repbench run --suite {suite}` with the same --store first")
+    if score_folders:
+        add_scores(results, score_folders, out_dir)
     extra = other = None
     if longer is not None:
         extra = longer_results(longer, results)
@@ -389,6 +399,61 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     preds = [p for f in folders for p in load_predictions(f, results)]
     return write_leaderboards(results, out_dir, longer=extra, agent_run=other,
                               predictions=preds, copy_records=copy_records)
+
+
+def add_scores(results: Results, folders: Sequence[str | Path], out_dir: Path) -> None:
+    """Add the metrics ``repbench score-metric`` scored into ``folders``
+    (:func:`repbench.pipeline.score_metric.read_scores`) to ``results``: their rows of the task
+    × encoders ``results`` has join its ``metric_rows`` (so the board ranks them with its own
+    metrics, one multiplicity correction over all of them), their directions and groups its
+    provenance's ``"directions"`` and ``"groups"``, and ``"scores"`` names each folder
+    (relative to ``out_dir``) with the metrics and rows it added.
+
+    Raises ConfigError (one line) for a scored metric the records also have, one metric in two
+    folders, or a folder with no rows of the board's task × encoders.
+    """
+    from repbench.pipeline.score_metric import SCORES_MANIFEST, read_scores
+
+    board = {(r["task"], r["encoder"])
+             for rows in (results.metric_rows, results.rl_rows, results.encoder_rows)
+             for r in rows}
+    own = {r["metric"] for r in results.metric_rows}
+    seen: dict[str, str | Path] = {}
+    added: list[dict[str, Any]] = []
+    for folder in folders:
+        scored = read_scores(folder)
+        for name in scored.directions:
+            if name in own:
+                raise ConfigError(f"metric {name} is both in the records and in --scores "
+                                  f"{folder}; the board ranks a metric once: drop that folder "
+                                  "or score the metric under another name")
+            if name in seen:
+                raise ConfigError(f"metric {name} is in --scores {seen[name]} and in --scores "
+                                  f"{folder}; pass a folder of each metric once")
+            seen[name] = folder
+        rows = [r for r in scored.rows if (r["task"], r["encoder"]) in board]
+        if not rows:
+            tasks = sorted({t for t, _ in board})
+            raise ConfigError(f"--scores {folder} has no rows of this board's tasks × encoders "
+                              f"({', '.join(tasks)}); score the metrics against this suite's "
+                              "latents or drop that folder")
+        if not scored.manifest:
+            note = (f"--scores {folder} was written before {SCORES_MANIFEST} existed and kept "
+                    "no bootstrap replicates: the intervals of its metrics "
+                    f"({', '.join(scored.directions)}) leave out their own estimation noise; "
+                    "rescore them with `repbench score-metric` to include it")
+            log.warning("%s", note)
+            results.warnings.append(note)
+        results.metric_rows += rows
+        results.provenance.setdefault("directions", {}).update(scored.directions)
+        results.provenance.setdefault("groups", {}).update(scored.groups)
+        added.append({
+            "folder": os.path.relpath(Path(folder).resolve(), out_dir.resolve()),
+            "metrics": list(scored.directions),
+            "rows": len(rows), "rows_off_board": len(scored.rows) - len(rows),
+            "bootstrap_replicates": any(r["extras"] for r in rows),
+            "manifest": scored.manifest})
+    results.provenance["scores"] = added
 
 
 def load_predictions(folder: str | Path, results: Results) -> list[pd.DataFrame]:

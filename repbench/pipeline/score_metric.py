@@ -9,6 +9,10 @@ against the reference's RL returns (:func:`repbench.report.leaderboard.metric_ra
 learned and all-encoder Spearman ρ with encoder × seed bootstrap intervals, Holm and BH p over
 every metric of the task, and the noise ceiling). This is an analysis over shipped files beside
 ``repbench leaderboard``; it runs no stage and writes no store.
+
+Its ``--out`` folder (``scored.json``, :data:`SCORES_MANIFEST`, says which metrics it scored,
+with their direction and group) is read back by :func:`read_scores`: ``repbench leaderboard
+--scores DIR`` ranks the scored metrics on the board beside the records' own.
 """
 
 from __future__ import annotations
@@ -16,20 +20,22 @@ from __future__ import annotations
 import dataclasses
 import functools
 import inspect
+import json
+import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from repbench.analysis.latent_sets import LatentSet, read_latent_sets
 from repbench.analysis.results import Results, build_results, load_records
-from repbench.errors import ConfigError, PluginError
+from repbench.errors import ConfigError, PluginError, RepbenchError
 from repbench.latent_metrics import compute_on_latents
 from repbench.metric_types import Metric, MetricResult
 from repbench.pipeline.evaluate import reference_dirs
@@ -37,13 +43,19 @@ from repbench.pipeline.suite import load_suite
 from repbench.references import import_reference, is_reference
 from repbench.registry import metrics
 
-__all__ = ["MetricScore", "latents_dir", "resolve_metric", "score_metric", "score_metrics"]
+__all__ = ["SCORES_FORMAT", "SCORES_MANIFEST", "SCORES_VERSION", "MetricScore", "ScoredMetrics",
+           "latents_dir", "read_scores", "resolve_metric", "score_metric", "score_metrics"]
 
 #: A metric slower than this per latent set (seconds, measured on the first) is computed on
 #: the rest in worker processes.
 PARALLEL_ABOVE_S = 0.5
 #: The folder of shipped latents beside a suite's reference records.
 LATENTS_FOLDER = "latents"
+#: The manifest of a ``score-metric --out`` folder: which metrics it scored, from which
+#: reference, their direction and group, and their files (:func:`read_scores`).
+SCORES_MANIFEST = "scored.json"
+SCORES_FORMAT = "repbench.scores"
+SCORES_VERSION = 1
 
 
 @dataclass
@@ -205,8 +217,10 @@ def score_metric(metric: str, suite: str = "quick", *,
         tasks: only these tasks (default: every task with shipped latents).
         workers: processes for a slow metric (default: the CPU count).
         out: folder for ``metrics.csv`` (every metric on the shipped encoders),
-            ``<metric>.csv`` (its rows), ``<metric>_values.csv`` and
-            ``figures/<metric>_vs_return.png``; None writes nothing.
+            ``<metric>.csv`` (its rows), ``<metric>_values.csv`` (and
+            ``<metric>_replicates.json``, its bootstrap replicates where it has them),
+            ``figures/<metric>_vs_return.png`` and :data:`SCORES_MANIFEST`, which
+            ``repbench leaderboard --scores`` reads (:func:`read_scores`); None writes nothing.
         higher_is_better: a plain function's direction (default True).
         observable: a plain function reads only what a real robot logs (its ``group``).
         n_bootstrap: bootstrap resamples for the correlation intervals.
@@ -250,7 +264,7 @@ def score_metrics(metric_refs: Sequence[str], suite: str = "quick", *,
         raise ConfigError(f"the reference of suite {s.name!r} has no RL records of the encoders "
                           f"whose latents are in {folder}; nothing to score against")
     res.metric_rows = [r for r in res.metric_rows if r["metric"] not in names]
-    tables = []
+    value_rows: list[dict[str, Any]] = []
     for ref, fn, name in zip(metric_refs, fns, names, strict=True):
         values = _compute_all(ref, higher_is_better, sets, s.metric_settings.seed,
                               _params(fn, s, name), name, workers or os.cpu_count() or 1, echo,
@@ -259,21 +273,23 @@ def score_metrics(metric_refs: Sequence[str], suite: str = "quick", *,
             {"task": x.task, "encoder": x.encoder, "metric": name, **v, "stage_cpu_s": None}
             for x, v in zip(sets, values, strict=True)]
         res.provenance.setdefault("directions", {})[name] = fn.higher_is_better
-        tables.append(pd.DataFrame([
+        res.provenance.setdefault("groups", {})[name] = fn.group
+        value_rows += [
             {"task": x.task, "encoder": x.encoder, "metric": name,
              **{k: v.get(k) for k in ("value", "ci_low", "ci_high", "time_s")}}
-            for x, v in zip(sets, values, strict=True)]))
+            for x, v in zip(sets, values, strict=True)]
     from repbench.report.leaderboard import metric_ranking
 
     ranking, _ = metric_ranking(res, n_bootstrap=n_bootstrap)
-    ranking = _ranked(ranking)
-    for fn, name in zip(fns, names, strict=True):
-        ranking.loc[ranking["metric"] == name, "group"] = fn.group
+    ranking = _ranked(ranking)  # the scored metrics' groups: res.provenance["groups"]
     row = ranking[ranking["metric"].isin(names)].reset_index(drop=True)
-    table = pd.concat(tables, ignore_index=True)
+    table = pd.DataFrame(value_rows)  # one frame: no concat of an all-empty CI column
     out_dir = None
     if out is not None:
-        out_dir = _write(Path(out), names, row, ranking, table, res)
+        scored = [{"name": name, "reference": str(ref), "higher_is_better": fn.higher_is_better,
+                   "group": fn.group} for ref, fn, name in zip(metric_refs, fns, names,
+                                                               strict=True)]
+        out_dir = _write(Path(out), scored, row, ranking, table, res)
     return MetricScore(",".join(names), row, ranking, table, out_dir, time.time() - start,
                        res)
 
@@ -289,22 +305,178 @@ def _ranked(ranking: pd.DataFrame) -> pd.DataFrame:
     return ranking
 
 
-def _write(out: Path, names: Sequence[str], row: pd.DataFrame, ranking: pd.DataFrame,
-           values: pd.DataFrame, res: Results) -> Path:
+def _slug(name: str) -> str:
+    """The file stem of metric ``name`` in a ``score-metric`` folder."""
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+
+
+def _write(out: Path, scored: Sequence[dict[str, Any]], row: pd.DataFrame,
+           ranking: pd.DataFrame, values: pd.DataFrame, res: Results) -> Path:
+    """Write the tables, figures and :data:`SCORES_MANIFEST` of the ``scored`` metrics (name,
+    reference, higher_is_better, group) to ``out``. ``<metric>_values.csv`` keeps every digit
+    and ``<metric>_replicates.json`` (task → encoder → the metric's bootstrap replicates, where
+    it has them) what the ranking's intervals resampled, so that :func:`read_scores` gives a
+    board the very rows ranked here."""
     from repbench.report.figures import metric_vs_return
     from repbench.report.leaderboard import metric_table
 
     out.mkdir(parents=True, exist_ok=True)
     ranking.to_csv(out / "metrics.csv", index=False, float_format="%.6g")
     (out / "figures").mkdir(exist_ok=True)
-    for name in names:
-        slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+    entries = []
+    for entry in scored:
+        name = entry["name"]
+        slug = _slug(name)
         mine = row[row["metric"] == name]
         mine.to_csv(out / f"{slug}.csv", index=False, float_format="%.6g")
         values[values["metric"] == name].drop(columns="metric").to_csv(
-            out / f"{slug}_values.csv", index=False, float_format="%.6g")
+            out / f"{slug}_values.csv", index=False)  # every digit: the board reads them back
         only = dataclasses.replace(res, metric_rows=[r for r in res.metric_rows
                                                      if r["metric"] == name])
+        replicates: dict[str, dict[str, list[float]]] = {}
+        for r in only.metric_rows:
+            reps = (r.get("extras") or {}).get("bootstrap_replicates")
+            if reps:
+                replicates.setdefault(r["task"], {})[r["encoder"]] = [float(v) for v in reps]
+        files = {"rows": f"{slug}.csv", "values": f"{slug}_values.csv"}
+        if replicates:
+            files["replicates"] = f"{slug}_replicates.json"
+            (out / files["replicates"]).write_text(json.dumps(replicates), encoding="utf-8")
+        else:
+            (out / f"{slug}_replicates.json").unlink(missing_ok=True)
+        entries.append({**entry, "files": files})
         titles = mine.merge(metric_table(only), on=["task", "agent", "metric"], how="left")
         metric_vs_return(only, out / "figures" / f"{slug}_vs_return.png", titles)
+    manifest = {"format": SCORES_FORMAT, "version": SCORES_VERSION, "metrics": entries}
+    (out / SCORES_MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
     return out
+
+
+class ScoredMetrics(NamedTuple):
+    """What :func:`read_scores` read from a ``score-metric`` folder."""
+
+    #: metric rows as :attr:`repbench.analysis.results.Results.metric_rows` holds them
+    rows: list[dict[str, Any]]
+    #: metric name → higher is better
+    directions: dict[str, bool]
+    #: metric name → ``observable`` or ``privileged``
+    groups: dict[str, str]
+    #: False for a folder written before :data:`SCORES_MANIFEST` existed: its metrics'
+    #: bootstrap replicates were not kept, so a board's intervals leave their noise out
+    manifest: bool = True
+
+
+def read_scores(folder: str | Path) -> ScoredMetrics:
+    """The metrics ``repbench score-metric --out folder`` scored: their rows (task, encoder,
+    metric, value, ci_low, ci_high, higher_is_better, time_s, extras with the bootstrap
+    replicates where the folder has them, and ``stage_cpu_s``, the metric's ``time_s``: one
+    thread, no stage around it), directions and groups.
+
+    Which metrics, their direction and group come from the folder's :data:`SCORES_MANIFEST`;
+    a folder written before it existed names them by its ``<metric>_values.csv`` files whose
+    ``<metric>.csv`` row file is there too (its ``metrics.csv`` also ranks the reference's own
+    metrics, which were not scored), with the direction and group of the registered metric.
+    Raises ConfigError (one line) for a folder without values files, a metric neither in the
+    manifest nor registered here, or a file that is not what the manifest says.
+    """
+    path = Path(folder)
+    if not path.is_dir():
+        raise ConfigError(f"--scores {folder} does not exist; pass a folder that "
+                          "`repbench score-metric --out` wrote")
+    entries, manifest = _scored_entries(path)
+    rows: list[dict[str, Any]] = []
+    directions: dict[str, bool] = {}
+    groups: dict[str, str] = {}
+    for entry in entries:
+        name = entry["name"]
+        directions[name] = bool(entry["higher_is_better"])
+        groups[name] = str(entry["group"])
+        files = entry.get("files") or {}
+        values_file = path / files.get("values", f"{_slug(name)}_values.csv")
+        if not values_file.is_file():
+            raise ConfigError(f"--scores {folder}: {SCORES_MANIFEST} lists metric {name} but "
+                              f"{values_file.name} is not there; rescore it with "
+                              f"`repbench score-metric {entry.get('reference', name)} --out "
+                              f"{folder}`")
+        table = pd.read_csv(values_file, float_precision="round_trip")  # every digit
+        lacking = [c for c in ("task", "encoder", "value") if c not in table.columns]
+        if lacking or table.empty:
+            raise ConfigError(f"--scores {folder}: {values_file.name} has no "
+                              f"{', '.join(lacking) or 'rows'}; rescore metric {name} with "
+                              "`repbench score-metric`")
+        replicates: dict[str, dict[str, list[float]]] = {}
+        if files.get("replicates"):
+            try:
+                replicates = json.loads((path / files["replicates"]).read_text(
+                    encoding="utf-8"))
+            except (OSError, ValueError) as exc:
+                raise ConfigError(f"--scores {folder}: cannot read {files['replicates']} "
+                                  f"({exc}); rescore metric {name} with "
+                                  "`repbench score-metric`") from None
+        for r in table.to_dict("records"):
+            task, enc = str(r["task"]), str(r["encoder"])
+            time_s = _number(r.get("time_s"))
+            reps = (replicates.get(task) or {}).get(enc)
+            rows.append({"task": task, "encoder": enc, "metric": name,
+                         "value": float(r["value"]), "higher_is_better": directions[name],
+                         "ci_low": _number(r.get("ci_low")), "ci_high": _number(r.get("ci_high")),
+                         "extras": {"bootstrap_replicates": reps} if reps else {},
+                         "time_s": time_s, "stage_cpu_s": time_s})
+    return ScoredMetrics(rows, directions, groups, manifest)
+
+
+def _number(x: Any) -> float | None:
+    """A CSV cell as a float; None for an empty cell."""
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return None
+    return float(x)
+
+
+def _scored_entries(path: Path) -> tuple[list[dict[str, Any]], bool]:
+    """The metrics a ``score-metric`` folder scored: its manifest's entries, or (a folder
+    written before the manifest) one per ``<metric>_values.csv`` beside its ``<metric>.csv``,
+    direction and group from the registry; and whether the folder has the manifest."""
+    manifest = path / SCORES_MANIFEST
+    if manifest.is_file():
+        try:
+            data = json.loads(manifest.read_text(encoding="utf-8"))
+        except ValueError as exc:
+            raise ConfigError(f"--scores {path}: {SCORES_MANIFEST} is not JSON ({exc}); "
+                              "rescore the metrics with `repbench score-metric`") from None
+        if (not isinstance(data, dict) or data.get("format") != SCORES_FORMAT
+                or not isinstance(data.get("version"), int)
+                or data["version"] > SCORES_VERSION):
+            what = (f"format {data.get('format')!r} version {data.get('version')!r}"
+                    if isinstance(data, dict) else "not a manifest")
+            raise ConfigError(f"--scores {path}: {SCORES_MANIFEST} is {what}; this repbench "
+                              f"reads {SCORES_FORMAT} version {SCORES_VERSION}: upgrade "
+                              "repbench or rescore with `repbench score-metric`")
+        entries = list(data.get("metrics") or [])
+        for entry in entries:
+            if not isinstance(entry, dict) or not {"name", "higher_is_better",
+                                                   "group"} <= set(entry):
+                raise ConfigError(f"--scores {path}: {SCORES_MANIFEST} has a metric entry "
+                                  f"without name, higher_is_better and group ({entry!r}); "
+                                  "rescore with `repbench score-metric`")
+        if not entries:
+            raise ConfigError(f"--scores {path}: {SCORES_MANIFEST} lists no metric; score "
+                              f"one into it with `repbench score-metric METRIC --out {path}`")
+        return entries, True
+    stems = sorted(f.name[:-len("_values.csv")] for f in path.glob("*_values.csv")
+                   if (path / f"{f.name[:-len('_values.csv')]}.csv").is_file())
+    if not stems:
+        raise ConfigError(f"--scores {path}: no <metric>_values.csv there; score a metric "
+                          f"into it with `repbench score-metric METRIC --out {path}`")
+    entries = []
+    for stem in stems:
+        try:
+            fn = metrics.get(stem)
+        except RepbenchError:
+            raise ConfigError(
+                f"--scores {path}: metric {stem} is not registered here and the folder has no "
+                f"{SCORES_MANIFEST} to give its direction and group; rescore it with "
+                f"`repbench score-metric path/to/file.py:{stem} --out {path}`") from None
+        entries.append({"name": stem, "reference": stem,
+                        "higher_is_better": fn.higher_is_better, "group": fn.group,
+                        "files": {"rows": f"{stem}.csv", "values": f"{stem}_values.csv"}})
+    return entries, False

@@ -183,31 +183,40 @@ def _panel_title(res: Any, metric: str, agent: str, correlations: pd.DataFrame |
 def metric_vs_return(res: Any, path: Path, correlations: pd.DataFrame | None = None
                      ) -> Path | None:
     """Scatter of each metric (x, with CI) against mean RL return over seeds (y, with CI), as
-    a grid of panels (4 columns, a block of rows per task × agent); points coloured by encoder
-    family, text labels on the baselines and the best and worst encoders where they fit;
-    panel titles carry the direction-adjusted Spearman ρ from ``correlations``.
+    a grid of panels (4 columns, a block of rows per task × agent, a panel per metric the task
+    has: a metric scored on one task only, ``repbench leaderboard --scores``, adds no empty
+    panels to the others); points coloured by encoder family, text labels on the baselines and
+    the best and worst encoders where they fit; panel titles carry the direction-adjusted
+    Spearman ρ from ``correlations``.
 
     Writes ``path`` (PNG) and, next to it, the same figure as SVG in which every point has
     a hover title naming its encoder (the page inlines that one); returns ``path``."""
     if not res.metric_rows or not res.rl_rows:
         return None
-    metrics = sorted({r["metric"] for r in res.metric_rows})
+    of_task: dict[str, set[str]] = {}
+    for r in res.metric_rows:
+        of_task.setdefault(r["task"], set()).add(r["metric"])
     blocks = _task_agent_blocks(res)
     n_tasks = len({task for task, _ in blocks})
     n_agents = len({agent for _, agent in blocks})
     families = encoder_families(res)
-    cols = min(_GRID_COLS, len(metrics))
-    per_agent = -(-len(metrics) // cols)
-    fig, axes = plt.subplots(per_agent * len(blocks), cols, squeeze=False,
-                             figsize=(3.4 * cols, 2.9 * per_agent * len(blocks)))
+    block_metrics = [sorted(of_task.get(task, ())) for task, _ in blocks]
+    cols = min(_GRID_COLS, max([len(m) for m in block_metrics], default=0))
+    if not cols:
+        return None
+    block_rows = [-(-len(m) // cols) for m in block_metrics]  # no rows: a task without metrics
+    fig, axes = plt.subplots(sum(block_rows), cols, squeeze=False,
+                             figsize=(3.4 * cols, 2.9 * sum(block_rows)))
     titles: dict[str, str] = {}
     labels: list[tuple[Any, Any]] = []
     drawn: set[str] = set()
     for i, (task, agent) in enumerate(blocks):
+        metrics = block_metrics[i]
+        first_row = sum(block_rows[:i])
         returns = _returns_by_encoder(res, agent, task)
         candidates = _label_candidates(returns, families)
-        for j in range(per_agent * cols):
-            ax = axes[i * per_agent + j // cols][j % cols]
+        for j in range(block_rows[i] * cols):
+            ax = axes[first_row + j // cols][j % cols]
             if j >= len(metrics):
                 ax.set_axis_off()
                 continue

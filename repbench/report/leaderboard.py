@@ -26,7 +26,7 @@ import contextlib
 import json
 import math
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -117,16 +117,21 @@ def metric_ranking(res: Results, n_bootstrap: int = 1000, seed: int = 0
                             na_position="last").reset_index(drop=True)
         df = add_ceiling_columns(df, ceilings(res.rl_rows, families, n_bootstrap=n_bootstrap,
                                               seed=seed))
-        df.insert(3, "group", df["metric"].map(metric_group))
+        groups = res.provenance.get("groups", {})
+        df.insert(3, "group", df["metric"].map(lambda m: metric_group(m, groups)))
     return df, preds
 
 
-def metric_group(name: str) -> str:
+def metric_group(name: str, groups: Mapping[str, str] | None = None) -> str:
     """``observable`` or ``privileged`` (:data:`repbench.metric.GROUPS`): what the metric reads;
-    ``unknown`` for a metric that is not installed here."""
+    ``groups[name]`` where given (a scored metric's group from ``repbench score-metric``, kept
+    in the provenance as ``"groups"``: a plain-file metric is in no registry), else the
+    registered metric's; ``unknown`` for a metric that is not installed here."""
     from repbench.errors import RepbenchError
     from repbench.registry import metrics
 
+    if groups and name in groups:
+        return str(groups[name])
     try:
         return str(getattr(metrics.get(name), "group", "privileged"))
     except RepbenchError:

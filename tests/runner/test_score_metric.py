@@ -16,10 +16,10 @@ import pytest
 import repbench
 from repbench.analysis.latent_sets import MANIFEST, read_latent_sets
 from repbench.analysis.results import load_records
-from repbench.errors import DataError
+from repbench.errors import ConfigError, DataError
 from repbench.pipeline.latents_export import export_latents
-from repbench.pipeline.runner import run_suite
-from repbench.pipeline.score_metric import score_metric, score_metrics
+from repbench.pipeline.runner import rebuild_leaderboards, run_suite
+from repbench.pipeline.score_metric import read_scores, score_metric, score_metrics
 from repbench.registry import encoders
 
 from .tiny_toy_suite import tiny_toy_suite
@@ -93,10 +93,10 @@ def reference(tmp_path_factory: pytest.TempPathFactory) -> Path:
         encoders.unregister(name)
 
 
-def _score(root: Path, metric: str, **kw):  # type: ignore[no-untyped-def]
+def _score(root: Path, metric: str, n_bootstrap: int = 200, **kw):  # type: ignore[no-untyped-def]
     return score_metric(metric, str(root / "toyscore.toml"), reference=root / "ref" / "records",
-                        latents=root / "latents", workers=1, progress=False, n_bootstrap=200,
-                        **kw)
+                        latents=root / "latents", workers=1, progress=False,
+                        n_bootstrap=n_bootstrap, **kw)
 
 
 def test_every_encoder_is_exported_once_with_the_task_data_stored_once(reference: Path):
@@ -194,6 +194,149 @@ def test_a_damaged_latents_file_is_refused_by_name(reference: Path, tmp_path: Pa
         score_metric("ksg", str(reference / "toyscore.toml"),
                      reference=reference / "ref" / "records", latents=copy, workers=1,
                      progress=False, n_bootstrap=50)
+
+
+def _board(root: Path, out: Path, scores: list[Path]) -> Path:
+    """The toy reference's board rebuilt from its records with the metrics scored in
+    ``scores``."""
+    return rebuild_leaderboards(str(root / "toyscore.toml"), records=root / "ref" / "records",
+                                out=out, copy_records=False, scores=scores)
+
+
+@pytest.fixture(scope="module")
+def scored_board(reference: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A registered metric (rankme) and a plain-file one (spread, observable) scored into
+    ``scores/`` with the board's 1000 resamples, and the toy board rebuilt from its records
+    with them by the command line (``board/``): one board for the tests below."""
+    from typer.testing import CliRunner
+
+    from repbench.cli import app
+
+    root = tmp_path_factory.mktemp("scored_board")
+    (root / "my_metric.py").write_text(FILE_METRIC)
+    scored = score_metrics(["rankme", f"{root / 'my_metric.py'}:spread"],
+                           str(reference / "toyscore.toml"),
+                           reference=reference / "ref" / "records", latents=reference / "latents",
+                           workers=1, progress=False, n_bootstrap=1000, observable=True,
+                           out=root / "scores")
+    got = CliRunner().invoke(app, [
+        "leaderboard", "--suite", str(reference / "toyscore.toml"), "--records",
+        str(reference / "ref" / "records"), "--no-copy-records", "--out", str(root / "board"),
+        "--scores", str(root / "scores")])
+    assert got.exit_code == 0, got.output
+    assert scored.results is not None
+    (root / "rows.json").write_text(json.dumps(  # the rows score-metric ranked
+        [r for r in scored.results.metric_rows if r["metric"] in ("rankme", "spread")]))
+    return root
+
+
+def test_scored_metrics_join_the_board_ranked_exactly_as_score_metric_ranked_them(
+        reference: Path, scored_board: Path):
+    from repbench.analysis.correlation import adjust_pvalues
+    from repbench.analysis.results import build_results
+    from repbench.report.leaderboard import metric_ranking
+
+    # the folder gives back every digit of the rows score-metric ranked, replicates included
+    ranked_rows = json.loads((scored_board / "rows.json").read_text())
+    read = read_scores(scored_board / "scores").rows
+    assert len(read) == len(ranked_rows) == 12
+    for mine, theirs in zip(read, ranked_rows, strict=True):
+        for k in ("task", "encoder", "metric", "value", "ci_low", "ci_high", "time_s"):
+            assert mine[k] == theirs[k], (k, mine, theirs)
+        reps = theirs["extras"].get("bootstrap_replicates")
+        assert mine["extras"].get("bootstrap_replicates") == reps
+        assert bool(reps) == (theirs["metric"] == "rankme")
+    board = scored_board / "board"
+    met = pd.read_csv(board / "metrics.csv")
+    # score-metric's ranking of every metric (rankme and spread with the records' ksg and
+    # regression): the board ranks the same rows with the same bootstrap, so every number
+    # agrees (cost_cpu_s aside: the board counts a scored metric's time_s as its CPU seconds)
+    ranked = pd.read_csv(scored_board / "scores" / "metrics.csv")
+    cols = [c for c in ranked.columns if c not in ("rank", "n_metrics", "cost_cpu_s")]
+    assert {"spearman_learned", "spearman_learned_ci_low", "spearman_learned_ci_high",
+            "spearman_learned_p_holm", "n_learned", "group", "noise_ceiling"} <= set(cols)
+    key = ["task", "agent", "metric"]
+    pd.testing.assert_frame_equal(met[cols].sort_values(key).reset_index(drop=True),
+                                  ranked[cols].sort_values(key).reset_index(drop=True))
+    row = met[met["metric"] == "rankme"].iloc[0]
+    assert row["group"] == "observable" and row["n_learned"] == 4
+    assert np.isfinite(row["spearman_learned_ci_low"])
+    # Holm over every metric of the task: the records' 2 and the 2 scored
+    alone, _ = metric_ranking(build_results(load_records(reference / "ref" / "records")),
+                              n_bootstrap=20)
+    assert alone.groupby(["task", "agent"]).size().tolist() == [2]
+    assert met.groupby(["task", "agent"]).size().tolist() == [4]
+    holm = adjust_pvalues(met["spearman_learned_p"].tolist(), "holm")
+    np.testing.assert_allclose(met["spearman_learned_p_holm"], holm, rtol=1e-4)
+    before = dict(zip(alone["metric"], alone["spearman_learned_p_holm"], strict=True))
+    for metric, p in zip(met["metric"], met["spearman_learned_p_holm"], strict=True):
+        if metric in before:
+            assert p >= before[metric] - 1e-6
+    prov = json.loads((board / "provenance.json").read_text())
+    assert prov["scores"] == [{"folder": "../scores", "metrics": ["rankme", "spread"],
+                               "rows": 12, "rows_off_board": 0,
+                               "bootstrap_replicates": True, "manifest": True}]
+    assert prov["directions"]["rankme"] is True and prov["directions"]["spread"] is True
+    page = (board / "index.html").read_text(encoding="utf-8")
+    assert "rankme" in page and "spread" in page
+    assert (board / "figures" / "metric_vs_return.png").stat().st_size > 1000
+
+
+def test_a_plain_file_metric_on_the_board_is_observable(scored_board: Path):
+    manifest = json.loads((scored_board / "scores" / "scored.json").read_text())
+    assert (manifest["format"], manifest["version"]) == ("repbench.scores", 1)
+    assert [(m["name"], m["reference"], m["higher_is_better"], m["group"])
+            for m in manifest["metrics"]] == [
+        ("rankme", "rankme", True, "observable"),
+        ("spread", f"{scored_board / 'my_metric.py'}:spread", True, "observable")]
+    met = pd.read_csv(scored_board / "board" / "metrics.csv")
+    groups = dict(zip(met["metric"], met["group"], strict=True))
+    assert groups == {"spread": "observable", "rankme": "observable", "ksg": "privileged",
+                      "regression": "privileged"}
+    prov = json.loads((scored_board / "board" / "provenance.json").read_text())
+    assert prov["groups"] == {"rankme": "observable", "spread": "observable"}
+
+
+def _legacy(folder: Path, metric: str, task: str = "ToyReach-v0") -> Path:
+    """A score-metric folder as written before scored.json: ``<metric>.csv`` and
+    ``<metric>_values.csv`` of the toy encoders."""
+    folder.mkdir(parents=True)
+    encs = ["oracle", "random", *PARTS]
+    pd.DataFrame({"task": task, "encoder": encs, "value": np.arange(len(encs), dtype=float),
+                  "ci_low": np.nan, "ci_high": np.nan, "time_s": 0.01}).to_csv(
+        folder / f"{metric}_values.csv", index=False)
+    pd.DataFrame({"task": [task], "agent": ["sac"], "metric": [metric]}).to_csv(
+        folder / f"{metric}.csv", index=False)
+    pd.DataFrame({"task": [task], "agent": ["sac"], "metric": ["ksg"]}).to_csv(
+        folder / "metrics.csv", index=False)  # the board's own metrics: not scored here
+    return folder
+
+
+def test_bad_scores_folders_are_refused_in_one_line_naming_the_thing(reference: Path,
+                                                                     tmp_path: Path):
+    legacy = read_scores(_legacy(tmp_path / "old", "rankme"))  # direction, group: registry
+    assert (legacy.directions, legacy.groups) == ({"rankme": True}, {"rankme": "observable"})
+    assert not legacy.manifest  # the board says its intervals lack the metric's own noise
+    assert [r["stage_cpu_s"] for r in legacy.rows] == [0.01] * 6
+    assert {r["ci_low"] for r in legacy.rows} == {None}
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "metrics.csv").write_text("task,agent,metric\n")
+    cases = [
+        ([tmp_path / "empty"], r"--scores .*empty: no <metric>_values\.csv there"),
+        ([_legacy(tmp_path / "clash", "ksg")],
+         r"metric ksg is both in the records and in --scores .*clash"),
+        ([tmp_path / "old", _legacy(tmp_path / "again", "rankme")],
+         r"metric rankme is in --scores .*old and in --scores .*again"),
+        ([_legacy(tmp_path / "unknown", "spread")],
+         r"metric spread is not registered here .*rescore it with `repbench score-metric"),
+        ([_legacy(tmp_path / "elsewhere", "nesum", task="OtherTask-v0")],
+         r"--scores .*elsewhere has no rows of this board's tasks"),
+    ]
+    for scores, message in cases:
+        with pytest.raises(ConfigError, match=message) as info:
+            _board(reference, tmp_path / "board", scores)
+        assert "\n" not in str(info.value)
+    assert not (tmp_path / "board").exists()  # refused before writing anything
 
 
 def _search():  # type: ignore[no-untyped-def]
