@@ -215,6 +215,8 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
     (:func:`repbench.pipeline.runner.agent_run_results`): the SAC-vs-DDPG rows.
     ``predictions``: pre-registered cross-task predictions (``predictions/<task>.csv``,
     :mod:`repbench.analysis.transfer`); each one whose task × agent has RL rows is scored.
+    Metrics joined from ``repbench score-metric`` folders (``res.provenance["scores"]``) are
+    left out of the calibration checks, which stay those of ``repbench evaluate``.
     """
     from repbench.analysis.noise_ceiling import ceiling_check, ceilings
     from repbench.analysis.robustness import check_results, robustness_table
@@ -225,7 +227,11 @@ def robustness_checks(res: Results, ranking: pd.DataFrame, longer: Results | Non
     longer_ranking = metric_ranking(longer)[0] if longer is not None else None
     other_rows = agent_run.rl_rows if agent_run is not None else ()
     other_ranking = metric_ranking(agent_run)[0] if agent_run is not None else None
-    checks, heldout = check_results(res.metric_rows, res.rl_rows, encoder_families(res), ranking,
+    # the calibration (coverage rows, held-out predictions) is the one `evaluate` uses: the
+    # board's own metrics only; metrics joined from `--scores` are ranked, not calibrated on
+    scored_names = {m for s in res.provenance.get("scores", []) for m in s.get("metrics", [])}
+    own_rows = [r for r in res.metric_rows if r["metric"] not in scored_names]
+    checks, heldout = check_results(own_rows, res.rl_rows, encoder_families(res), ranking,
                                     longer=longer_rows, longer_ranking=longer_ranking,
                                     other_agent=other_rows, other_ranking=other_ranking)
     scored: dict[str, pd.DataFrame] = {}  # check name -> scored table

@@ -385,3 +385,30 @@ def test_the_metric_searchs_steps_run_in_order_on_a_toy_reference(
         assert check["verdict"] in ("beats ksg", "holds", "does not hold", "inconclusive")
         assert check["baseline"] == "ksg" and check["n"] == 4
     assert test["evaluate_switches_to"] in (None, sel["single"], " + ".join(sel["model"]))
+
+
+def test_scored_metrics_are_ranked_but_not_calibrated_on() -> None:
+    """`repbench evaluate` calibrates on the board's own metrics; a metric joined from
+    --scores (here a perfect one) must not become the board's calibration predictor, so the
+    coverage rows stay those evaluate states."""
+    from repbench.analysis.results import Results
+    from repbench.report.leaderboard import metric_ranking, robustness_checks
+
+    rng = np.random.default_rng(0)
+    m = np.linspace(0, 1, 12)
+    res = Results(suite="toy")
+    res.metric_rows = [{"task": "T", "encoder": f"e{i}", "metric": name, "value": float(v),
+                        "ci_low": None, "ci_high": None}
+                       for i in range(12)
+                       for name, v in (("own", m[i] + rng.normal(0, 0.5)), ("scored", m[i]))]
+    res.rl_rows = [{"task": "T", "encoder": f"e{i}", "agent": "sac", "seed": s,
+                    "train_steps": 10_000, "eval_return": float(500 * m[i] + rng.normal(0, 10))}
+                   for i in range(12) for s in range(3)]
+    ranking, _ = metric_ranking(res, n_bootstrap=50)
+    assert ranking.iloc[0]["metric"] == "scored"  # ranked: the best on the board
+    robustness_checks(res, ranking)
+    assert "scored" in set(res.robustness["heldout"]["predictor"].str.split(" ").sum())
+    res.provenance["scores"] = [{"metrics": ["scored"]}]
+    robustness_checks(res, ranking)
+    predictors = set(res.robustness["heldout"]["predictor"])
+    assert predictors and all("scored" not in p for p in predictors), predictors
