@@ -216,40 +216,54 @@ def _best_of_group(grp: pd.DataFrame) -> dict[str, Any] | None:
     return grp.sort_values("spearman_learned", ascending=False).iloc[0].to_dict()
 
 
-def _said(r: dict[str, Any], task: str, agent: str, agents: int) -> str:
+def _predicts(r: dict[str, Any]) -> bool:
+    """Holm-adjusted p below 0.05: the metric is shown to predict return there."""
+    holm = r.get("spearman_learned_p_holm")
+    return holm is not None and math.isfinite(float(holm)) and float(holm) < 0.05
+
+
+def _said(r: dict[str, Any], task: str, agent: str, agents: int, *, why: bool = True) -> str:
     where = f"{html.escape(task)}" + (f" ({html.escape(agent)})" if agents > 1 else "")
     share = r.get("of_ceiling")
     share_said = f", {float(share):.0%} of the noise ceiling" \
         if share is not None and math.isfinite(float(share)) else ""
-    holm = r.get("spearman_learned_p_holm")
-    predicts = holm is not None and math.isfinite(float(holm)) and float(holm) < 0.05
     return (f"on {where} <code>{html.escape(str(r['metric']))}</code>, ρ "
             f"{_fmt2(r['spearman_learned'])} [{_fmt2(r['spearman_learned_ci_low'])}, "
             f"{_fmt2(r['spearman_learned_ci_high'])}]{share_said}"
-            + ("" if predicts else " — not significant: no metric of this kind is shown to "
-               "predict there"))
+            + ("" if _predicts(r) else " — not significant" + (
+                ": no metric of this kind is shown to predict there" if why else "")))
 
 
 def opening_sentence(ranking: pd.DataFrame | None) -> str:
     """The answer in words, from ``metrics.csv``'s rows: per reader (:data:`READERS`), the
     metric of their group with the largest within-learned ρ on each task × agent, its interval
-    and share of the noise ceiling; a group with no metric on the board is said to be absent.
-    Empty without a ranking."""
+    and share of the noise ceiling. A reader none of whose best metrics is significant is told
+    so first ("has no metric shown to predict return yet"), not "should use"; the tasks on
+    which the group has no metric are named; a group with no metric on the board is said to
+    be absent. Empty without a ranking."""
     if ranking is None or ranking.empty or "group" not in ranking:
         return ""
     agents = ranking["agent"].nunique()
+    tasks = sorted(ranking["task"].astype(str).unique())
     parts = []
     for group, who, reads in READERS:
         mine = ranking[ranking["group"] == group]
-        said = [_said(best, str(task), str(agent), agents)
+        best = [(b, str(task), str(agent))
                 for (task, agent), grp in mine.groupby(["task", "agent"], sort=True)
-                if (best := _best_of_group(grp)) is not None]
-        if said:
-            parts.append(f"<b>{who}</b> (metrics that read {reads}) should use: "
-                         + "; ".join(said) + ".")
+                if (b := _best_of_group(grp)) is not None]
+        lead = f"<b>{who}</b> (metrics that read {reads})"
+        if not best:
+            parts.append(f"{lead} has no metric on this board yet.")
+            continue
+        unscored = [t for t in tasks if t not in {task for _, task, _ in best}]
+        tail = f" None is scored on {', '.join(unscored)} yet." if unscored else ""
+        if any(_predicts(b) for b, _, _ in best):
+            said = "; ".join(_said(b, t, a, agents) for b, t, a in best)
+            parts.append(f"{lead} should use: {said}.{tail}")
         else:
-            parts.append(f"<b>{who}</b> (metrics that read {reads}) has no metric on this "
-                         "board yet.")
+            said = "; ".join(_said(b, t, a, agents, why=False) for b, t, a in best)
+            parts.append(f"{lead} has no metric shown to predict return yet; the best of its "
+                         f"kind: {said}.{tail}")
     return "<p class='lede' id='answer-words'>" + " ".join(parts) + "</p>"
 
 

@@ -422,9 +422,17 @@ def test_the_answer_opens_with_a_sentence_per_reader_naming_each_groups_best_met
     assert "on B-v0 <code>regression</code>" in simulator and "not significant" in simulator
     assert "on A-v0 <code>rankme</code>, ρ 0.45 [0.25, 0.55], 50% of" in robot
     assert "not significant" not in robot
+    assert "None is scored on B-v0 yet." in robot  # the observable metrics are A-v0's only
     none = opening_sentence(ranking[ranking["group"] == "privileged"])
     assert "A real-robot user</b> (metrics that read only what a robot logs" in none
     assert none.endswith("has no metric on this board yet.</p>")
+    # a reader none of whose best metrics predicts is not told to "use" one
+    weak = opening_sentence(ranking[ranking["metric"] != "rankme"])
+    robot = weak.split("A real-robot user")[1]
+    assert "should use" not in robot
+    assert ("has no metric shown to predict return yet; the best of its kind: on A-v0 "
+            "<code>nesum</code>, ρ 0.30 [0.10, 0.40], 33% of the noise ceiling — not "
+            "significant.") in robot
     assert opening_sentence(None) == "" and opening_sentence(pd.DataFrame()) == ""
 
 
