@@ -41,9 +41,23 @@ def img(path: Path, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
+#: An SVG larger than this (bytes) is not inlined when its PNG twin exists: the page inlines the
+#: PNG and links the SVG (quick's metric–return grid with the metric search's 12 candidates is
+#: 1.4 MB of SVG against 0.34 MB of PNG, and the page must stay small).
+MAX_INLINE_SVG = 1_000_000
+
+
 def figure(path: Path, alt: str) -> str:
-    """A figure for the page: SVG inline (its hover titles work), anything else as an image."""
+    """A figure for the page: SVG inline (its hover titles work), anything else as an image.
+    An SVG over :data:`MAX_INLINE_SVG` with a PNG beside it is inlined as that PNG, with a link
+    to the SVG (relative to the page's folder, where the figures are) for the hover titles."""
     if path.suffix == ".svg":
+        png = path.with_suffix(".png")
+        if path.stat().st_size > MAX_INLINE_SVG and png.is_file():
+            link = f"{path.parent.name}/{path.name}"
+            return (img(png, alt) + f"<p class='sub'>Too large to inline with its hover labels: "
+                    f"<a href='{html.escape(link)}'>{html.escape(path.name)}</a> names every "
+                    "point's encoder.</p>")
         return f"<div class='svgfig' role='img' aria-label='{html.escape(alt)}'>" + (
             path.read_text(encoding="utf-8")) + "</div>"
     return img(path, alt)

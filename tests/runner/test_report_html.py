@@ -442,3 +442,22 @@ def test_the_shipped_quick_page_opens_its_answer_in_words() -> None:
     page = (board / "index.html").read_text(encoding="utf-8")
     start = page.index("<section id='answer'>")
     assert page.index("id='answer-words'") < page.index("<table", start)
+
+
+def test_a_large_svg_is_inlined_as_its_png_with_a_link(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The page stays small: an SVG over the limit is shown as its PNG twin, the SVG linked."""
+    from repbench.report import html_parts
+
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    svg, png = figures / "grid.svg", figures / "grid.png"
+    svg.write_text("<svg xmlns='http://www.w3.org/2000/svg'>" + " " * 200 + "</svg>")
+    png.write_bytes(b"\x89PNG small")
+    assert html_parts.figure(svg, "grid").startswith("<div class='svgfig'")
+    monkeypatch.setattr(html_parts, "MAX_INLINE_SVG", 100)
+    said = html_parts.figure(svg, "grid")
+    assert said.startswith('<img alt="grid" src="data:image/png;base64,')
+    assert "<a href='figures/grid.svg'>grid.svg</a>" in said and "<svg" not in said
+    png.unlink()  # no PNG twin: the SVG is inlined whatever its size
+    assert html_parts.figure(svg, "grid").startswith("<div class='svgfig'")
