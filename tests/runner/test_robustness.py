@@ -155,15 +155,23 @@ def test_best_metric_agreement_rule() -> None:
         "interval [-0.71, 0.97] includes 0")
 
 
-def test_check_results_adds_agent_and_budget_rows() -> None:
-    rng = np.random.default_rng(2)
-    n = 12
+def _linear_board(seed: int, agents: tuple[str, ...], n: int = 12
+                  ) -> tuple[list[dict], list[dict]]:
+    """One metric m rising from 0 to 1 over n encoders, and 3 seeds of each agent's return
+    500 m + noise: (metric rows, RL rows; each RL row names its encoder's weights)."""
+    rng = np.random.default_rng(seed)
     m = np.linspace(0, 1, n)
     metric_rows = [{"task": "T", "encoder": f"e{i}", "metric": "m", "value": float(m[i])}
                    for i in range(n)]
     rl = [{"task": "T", "encoder": f"e{i}", "agent": a, "seed": s, "train_steps": 10_000,
-           "eval_return": float(500 * m[i] + rng.normal(0, 10))}
-          for i in range(n) for a in ("sac", "ddpg") for s in range(3)]
+           "encoder_weights": f"w{i}", "eval_return": float(500 * m[i] + rng.normal(0, 10))}
+          for i in range(n) for a in agents for s in range(3)]
+    return metric_rows, rl
+
+
+def test_check_results_adds_agent_and_budget_rows() -> None:
+    n = 12
+    metric_rows, rl = _linear_board(2, ("sac", "ddpg"), n)
     longer = [dict(r, train_steps=30_000, eval_return=r["eval_return"] + 50)
               for r in rl if r["agent"] == "sac"]
     families = {f"e{i}": f"f{i % 4}" for i in range(n)}
@@ -176,14 +184,8 @@ def test_check_results_adds_agent_and_budget_rows() -> None:
 
 
 def test_agreement_rows_say_when_the_other_runs_are_of_other_trainings() -> None:
-    rng = np.random.default_rng(3)
     n = 12
-    m = np.linspace(0, 1, n)
-    metric_rows = [{"task": "T", "encoder": f"e{i}", "metric": "m", "value": float(m[i])}
-                   for i in range(n)]
-    sac = [{"task": "T", "encoder": f"e{i}", "agent": "sac", "seed": s, "train_steps": 10_000,
-            "encoder_weights": f"w{i}", "eval_return": float(500 * m[i] + rng.normal(0, 10))}
-           for i in range(n) for s in range(3)]
+    metric_rows, sac = _linear_board(3, ("sac",), n)
     # DDPG ran the same trainings of e0..e7, another training of e8..e9; e10, e11 predate the
     # field. The 30k runs all name the board's weights.
     ddpg = [dict(r, agent="ddpg", encoder_weights=(
