@@ -365,7 +365,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
     out_dir = check_out_dir(out if out is not None else default_out_dir(s.name))
     score_folders = [scores] if isinstance(scores, (str, Path)) else list(scores or [])
     if score_folders:  # a bad folder is refused before the records are read
-        from repbench.pipeline.score_metric import read_scores
+        from repbench.pipeline.scores import read_scores
 
         for folder in score_folders:
             read_scores(folder)
@@ -403,7 +403,7 @@ def rebuild_leaderboards(suite: str | Path, *, store: str | Path | None = None,
 
 def add_scores(results: Results, folders: Sequence[str | Path], out_dir: Path) -> None:
     """Add the metrics ``repbench score-metric`` scored into ``folders``
-    (:func:`repbench.pipeline.score_metric.read_scores`) to ``results``: their rows of the task
+    (:func:`repbench.pipeline.scores.read_scores`) to ``results``: their rows of the task
     × encoders ``results`` has join its ``metric_rows`` (so the board ranks them with its own
     metrics, one multiplicity correction over all of them), their directions and groups its
     provenance's ``"directions"`` and ``"groups"``, and ``"scores"`` names each folder
@@ -412,7 +412,7 @@ def add_scores(results: Results, folders: Sequence[str | Path], out_dir: Path) -
     Raises ConfigError (one line) for a scored metric the records also have, one metric in two
     folders, or a folder with no rows of the board's task × encoders.
     """
-    from repbench.pipeline.score_metric import SCORES_MANIFEST, read_scores
+    from repbench.pipeline.scores import SCORES_MANIFEST, read_scores
 
     board = {(r["task"], r["encoder"])
              for rows in (results.metric_rows, results.rl_rows, results.encoder_rows)

@@ -172,7 +172,7 @@ def test_a_within_task_prediction_is_scored_beside_a_cross_task_one_of_the_same_
     rl_rows = [dict(r, train_steps=10) for r in _actual({e: 10.0 * v
                                                          for e, v in target_m.items()})]
     res = SimpleNamespace(metric_rows=[dict(r, agent=AGENT) for r in _target(target_m)],
-                          rl_rows=rl_rows, encoder_rows=[])
+                          rl_rows=rl_rows, encoder_rows=[], provenance={})
     # a prediction none of whose encoders has an RL row yet is not scored (no empty check)
     unrun = within.assign(encoder="new_" + within["encoder"], source_task="Third-v0")
     table = robustness_checks(res, pd.DataFrame(), predictions=[across, within, unrun])
