@@ -67,8 +67,13 @@ def test_kill_9_then_resume_recomputes_nothing_finished(resumed_store) -> None: 
     assert enc[["ksg", "regression", "coherence", "sac_return"]].notna().all().all()
 
 
+@pytest.mark.slow  # the fast equivalent in the default run: tests/faults/test_ray_cluster.py
 def test_ray_executor_matches_local(resumed_store, mini_suite: Path,  # type: ignore[no-untyped-def]
                                     tmp_path: Path) -> None:
+    """The mini suite under ``--executor ray`` stores what the local executor stores. Behind
+    ``-m slow`` (the longest test of the default run, ~5 min on 2 loaded cores): the Ray
+    cluster test runs 14 stages on Ray and compares datasets, latents, metric values, RL
+    returns and the board with a local run bit for bit (``_assert_same_results``)."""
     pytest.importorskip("ray")
     local_store, local_out, _, _ = resumed_store
     ray_store, ray_out = tmp_path / "store", tmp_path / "out"

@@ -4,6 +4,7 @@ file is scored beside them; damaged files are refused."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -364,13 +365,18 @@ def test_the_metric_searchs_steps_run_in_order_on_a_toy_reference(
     toy += ["--n-seeds", "2", "--candidates", "rankme", "nesum", "--no-progress",
             "--baseline", "ksg"]  # the toy suite has no task_cmi
     assert search.main(["check", *toy]) == 0
+    assert search.main(["select", *toy]) == 0
     # the selection needs only its own task complete; the held-out test needs both
     incomplete = list(toy)
     incomplete[incomplete.index("--test-task") + 1] = "ToyUnmade-v0"
-    assert search.main(["select", *incomplete]) == 0
     with pytest.raises(SystemExit, match="not complete on ToyReach-v0, ToyUnmade-v0"):
         search.main(["test", *incomplete, "--uncommitted-ok"])
-    assert search.main(["select", *toy]) == 0
+    args = argparse.Namespace(suite=str(reference / "toyscore.toml"),
+                              latents=str(reference / "latents"),
+                              reference=[str(reference / "ref" / "records")], n_seeds=2)
+    search._refuse_partial(args, ("ToyReach-v0",))  # select's check: passes
+    with pytest.raises(SystemExit, match="not complete on ToyUnmade-v0"):
+        search._refuse_partial(args, ("ToyUnmade-v0",))
     sel = json.loads((tmp_path / "search" / "selection.json").read_text())
     assert sel["n_learned"] == 4 and sel["candidates"] == ["rankme", "nesum"]
     assert {r["metric"] for r in sel["ranking"]} == {"ksg", "regression", "rankme", "nesum"}
